@@ -1,0 +1,122 @@
+"""The estimator interface every filter implements, and the state-space model it consumes.
+
+An estimator holds a mean ``x`` and covariance ``P`` and is driven by the master (or by user
+code, numpy in and numpy out)::
+
+    est.predict(u, dt)        # time update over dt with control u held
+    est.update(z, mask)       # measurement update; mask[i] False = component i missing
+    est.update(None)          # no measurement this step (FilterPy's update(z=None))
+    est.diagnostics           # per-step diagnostics (dict of floats), reset every step
+    est.t                     # time of the current estimate; the driver sets it (the master
+                              # sets est.t = t0 + k*h before each update; it is never summed)
+
+Settings come from scenarios by name through :data:`ESTIMATORS` and
+:meth:`Estimator.from_settings`, which rejects unknown settings with a one-line error.
+"""
+
+from __future__ import annotations
+
+import inspect
+from abc import ABC, abstractmethod
+from typing import Any, Protocol
+
+import numpy as np
+
+from uwcosim.errors import ScenarioError
+from uwcosim.registry import Registry
+
+
+class StateSpaceModel(Protocol):
+    """Discrete-time model ``x' = f(x, u, dt) + noise``, ``z = h(x) + v`` seen by the filters.
+
+    ``F``, ``H`` are Jacobians; ``Q(x, u, dt)`` the discrete process covariance and ``R`` the
+    measurement covariance over the full measurement vector (components named in
+    ``measurement_names``). Batch forms take ``X`` of shape ``(N, nx)``.
+    """
+
+    nx: int
+    nz: int
+    state_names: tuple[str, ...]
+    measurement_names: tuple[str, ...]
+    R: np.ndarray
+
+    def f(self, x: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray: ...
+    def F(self, x: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray: ...
+    def Q(self, x: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray: ...
+    def h(self, x: np.ndarray) -> np.ndarray: ...
+    def H(self, x: np.ndarray) -> np.ndarray: ...
+    def f_batch(self, X: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray: ...
+    def h_batch(self, X: np.ndarray) -> np.ndarray: ...
+
+
+class Estimator(ABC):
+    """Base class: mean ``x``, covariance ``P``, ``predict``/``update`` and diagnostics."""
+
+    #: registry name, set by :func:`register`
+    kind: str = ""
+
+    def __init__(self, model: StateSpaceModel, x0: np.ndarray, P0: np.ndarray) -> None:
+        self.model = model
+        self.x = np.array(x0, dtype=float).reshape(-1)
+        self.P = np.array(P0, dtype=float)
+        if self.P.ndim == 1:
+            self.P = np.diag(self.P)
+        if self.x.shape != (model.nx,) or self.P.shape != (model.nx, model.nx):
+            raise ScenarioError(
+                f"estimator {self.kind}: x0 must have {model.nx} elements and P0 be "
+                f"{model.nx}x{model.nx}, got {self.x.shape} and {self.P.shape}"
+            )
+        self.diverged = False
+        self.diagnostics: dict[str, float] = {}
+        self.t = 0.0
+
+    @abstractmethod
+    def predict(self, u: np.ndarray, dt: float) -> None:
+        """Time update from t to t + dt with the control ``u`` held."""
+
+    @abstractmethod
+    def update(self, z: np.ndarray | None, mask: np.ndarray | None = None) -> None:
+        """Measurement update; ``z=None`` or an all-False ``mask`` means no measurement."""
+
+    @classmethod
+    def from_settings(
+        cls, model: StateSpaceModel, x0, P0, settings: dict[str, Any], where: str = ""
+    ) -> Estimator:
+        """Build from scenario settings, rejecting unknown keys with a one-line error."""
+        params = inspect.signature(cls.__init__).parameters
+        allowed = [p for p in params if p not in ("self", "model", "x0", "P0")]
+        for key in settings:
+            if key not in allowed:
+                raise ScenarioError(
+                    f"{where}: unknown setting {key!r} for estimator {cls.kind!r} "
+                    f"(valid: {', '.join(allowed) or 'none'})"
+                )
+        try:
+            return cls(model, x0, P0, **settings)
+        except (TypeError, ValueError) as exc:
+            raise ScenarioError(f"{where}: {exc}") from None
+
+
+ESTIMATORS: Registry[type[Estimator]] = Registry("estimator")
+
+
+def register(name: str):
+    """Class decorator: register an estimator class under ``name``."""
+
+    def deco(cls: type[Estimator]) -> type[Estimator]:
+        cls.kind = name
+        ESTIMATORS.add(name, cls)
+        return cls
+
+    return deco
+
+
+def select(z: np.ndarray | None, mask: np.ndarray | None, nz: int) -> np.ndarray | None:
+    """Indices of the available measurement components (None when nothing is available)."""
+    if z is None:
+        return None
+    if mask is None:
+        idx = np.flatnonzero(np.isfinite(z))
+    else:
+        idx = np.flatnonzero(np.asarray(mask, dtype=bool) & np.isfinite(z))
+    return idx if idx.size else None

@@ -1,0 +1,1 @@
+"""Symbolic models (CasADi) shared by the FMUs and the estimators: equations defined once."""

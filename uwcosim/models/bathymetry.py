@@ -1,0 +1,271 @@
+"""Bathymetry maps and the terrain-depth function ``h_d(x, y)`` of seed 000 eq. (55).
+
+A map is a regular grid of depths (m, positive down) at ``x = x0 + i*dx`` (east) and
+``y = y0 + j*dy`` (north), stored as ``depth[j, i]`` (rows are y). ``h_d`` is the C2 cubic
+B-spline that interpolates the grid (coefficients from :func:`scipy.ndimage.spline_filter` with
+mirror boundaries, padded by three mirrored coefficients on each side). The same spline is
+evaluated by
+
+- :meth:`Bathymetry.depth` / :meth:`Bathymetry.gradient` (numpy, vectorized over points),
+- :meth:`Bathymetry.casadi_function` (``casadi.bspline``: exact Jacobians for the EKF),
+- the DepthSounder FMU's C kernel, which reads :meth:`Bathymetry.write_coefficients` files.
+
+Maps come from :func:`synthetic_bathymetry` (seeded spectral synthesis) or :func:`load_map`
+(``.npz`` or NetCDF as GEBCO distributes it).
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from uwcosim.errors import MapError
+
+PAD = 3
+MAGIC = b"UWCBATH1"
+_HEADER = struct.Struct("<8sii4d")
+EARTH_RADIUS_M = 6_371_000.0
+
+
+@dataclass(frozen=True)
+class Bathymetry:
+    """A depth grid and its interpolating cubic B-spline."""
+
+    x0: float
+    y0: float
+    dx: float
+    dy: float
+    depth_grid: np.ndarray  # [ny, nx], metres, positive down
+    coefficients: np.ndarray = field(init=False, repr=False)  # [ny + 6, nx + 6]
+
+    def __post_init__(self) -> None:
+        z = np.asarray(self.depth_grid, dtype=float)
+        if z.ndim != 2 or min(z.shape) < 4:
+            raise MapError(f"bathymetry grid must be 2-D with at least 4x4 cells, got {z.shape}")
+        if not np.all(np.isfinite(z)):
+            raise MapError("bathymetry grid contains NaN or infinite depths")
+        if not (self.dx > 0 and self.dy > 0):
+            raise MapError(f"bathymetry spacing must be positive, got dx={self.dx}, dy={self.dy}")
+        c = ndimage.spline_filter(z, order=3, mode="mirror")
+        object.__setattr__(self, "depth_grid", z)
+        object.__setattr__(self, "coefficients", np.pad(c, PAD, mode="reflect"))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.depth_grid.shape
+
+    @property
+    def extent(self) -> tuple[float, float, float, float]:
+        """``(xmin, xmax, ymin, ymax)`` of the grid."""
+        ny, nx = self.shape
+        return (self.x0, self.x0 + (nx - 1) * self.dx, self.y0, self.y0 + (ny - 1) * self.dy)
+
+    def inside(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        xmin, xmax, ymin, ymax = self.extent
+        return (x >= xmin) & (x <= xmax) & (y >= ymin) & (y <= ymax)
+
+    def _weights(self, x: np.ndarray, y: np.ndarray):
+        ny, nx = self.shape
+        u = np.clip((np.asarray(x, dtype=float) - self.x0) / self.dx, 0.0, nx - 1.0)
+        v = np.clip((np.asarray(y, dtype=float) - self.y0) / self.dy, 0.0, ny - 1.0)
+        iu = np.minimum(np.floor(u).astype(np.intp), nx - 2)
+        iv = np.minimum(np.floor(v).astype(np.intp), ny - 2)
+        return iu, u - iu, iv, v - iv
+
+    @staticmethod
+    def _basis(f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Cubic B-spline weights and their derivatives at fraction ``f``: shape (4, ...)."""
+        g = 1.0 - f
+        f2, f3 = f * f, f * f * f
+        w = np.stack([g**3, 3 * f3 - 6 * f2 + 4, -3 * f3 + 3 * f2 + 3 * f + 1, f3]) / 6.0
+        dw = np.stack([-(g**2), 3 * f2 - 4 * f, -3 * f2 + 2 * f + 1, f2]) / 2.0
+        return w, dw
+
+    def _eval(self, x, y, grad: bool):
+        iu, fu, iv, fv = self._weights(x, y)
+        wu, dwu = self._basis(fu)
+        wv, dwv = self._basis(fv)
+        c = self.coefficients
+        val = np.zeros(np.shape(fu))
+        gx = np.zeros_like(val)
+        gy = np.zeros_like(val)
+        # coefficient of grid node j sits at padded index j + PAD; the stencil is j-1..j+2
+        for b in range(4):
+            row = iv + b - 1 + PAD
+            for a in range(4):
+                cab = c[row, iu + a - 1 + PAD]
+                val += wu[a] * wv[b] * cab
+                if grad:
+                    gx += dwu[a] * wv[b] * cab
+                    gy += wu[a] * dwv[b] * cab
+        if grad:
+            return val, gx / self.dx, gy / self.dy
+        return val
+
+    def depth(self, x, y) -> np.ndarray:
+        """``h_d(x, y)``; points outside the grid take the value at the nearest edge."""
+        return self._eval(x, y, grad=False)
+
+    def gradient(self, x, y) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(h_d, dh_d/dx, dh_d/dy)`` at the points."""
+        return self._eval(x, y, grad=True)
+
+    def knots(self) -> tuple[np.ndarray, np.ndarray]:
+        """B-spline knots (x and y) matching :attr:`coefficients`."""
+        ny, nx = self.shape
+        kx = self.x0 + self.dx * np.arange(-5, nx + 5, dtype=float)
+        ky = self.y0 + self.dy * np.arange(-5, ny + 5, dtype=float)
+        return kx, ky
+
+    def casadi_function(self):
+        """``h_d`` as a CasADi function of ``[x, y]`` (same spline; exact derivatives)."""
+        import casadi as ca
+
+        kx, ky = self.knots()
+        xy = ca.MX.sym("xy", 2)
+        coef = ca.DM(self.coefficients.ravel())  # x fastest: column-major in (x, y)
+        h = ca.bspline(xy, coef, [list(kx), list(ky)], [3, 3], 1, {})
+        return ca.Function("terrain_depth", [xy], [h], ["xy"], ["h"])
+
+    def write_coefficients(self, path: str | Path) -> Path:
+        """Write the binary file the DepthSounder FMU reads (little-endian)::
+
+        magic 'UWCBATH1', int32 nx, int32 ny, float64 x0, y0, dx, dy,
+        float64 coefficients[(ny + 6) * (nx + 6)] (x fastest, 3 padding nodes on each side).
+        """
+        path = Path(path)
+        ny, nx = self.shape
+        with open(path, "wb") as fh:
+            fh.write(_HEADER.pack(MAGIC, nx, ny, self.x0, self.y0, self.dx, self.dy))
+            fh.write(np.ascontiguousarray(self.coefficients, dtype="<f8").tobytes())
+        return path
+
+    def save_npz(self, path: str | Path) -> Path:
+        ny, nx = self.shape
+        x = self.x0 + self.dx * np.arange(nx)
+        y = self.y0 + self.dy * np.arange(ny)
+        np.savez_compressed(path, x=x, y=y, depth=self.depth_grid)
+        return Path(path)
+
+
+def synthetic_bathymetry(
+    seed: int,
+    extent: tuple[float, float, float, float] = (0.0, 25_000.0, 0.0, 25_000.0),
+    resolution: float = 50.0,
+    mean_depth: float = 1000.0,
+    relief_std: float = 60.0,
+    spectral_slope: float = 3.6,
+) -> Bathymetry:
+    """A seeded synthetic seafloor with realistic relief.
+
+    Fractal relief by spectral synthesis (isotropic power spectrum ~ k^-slope, slope 3-4 as
+    measured for abyssal hills), scaled to ``relief_std``, on top of a regional slope and a few
+    Gaussian seamounts. The same seed gives the same map on every machine.
+    """
+    xmin, xmax, ymin, ymax = extent
+    nx = int(round((xmax - xmin) / resolution)) + 1
+    ny = int(round((ymax - ymin) / resolution)) + 1
+    rng = np.random.default_rng(seed)
+    kx = np.fft.fftfreq(nx, d=resolution)
+    ky = np.fft.fftfreq(ny, d=resolution)
+    k = np.hypot(*np.meshgrid(kx, ky))
+    k[0, 0] = np.inf
+    amp = np.maximum(k, 1.0 / 20_000.0) ** (-spectral_slope / 2.0)
+    amp[0, 0] = 0.0
+    phase = rng.standard_normal((ny, nx)) + 1j * rng.standard_normal((ny, nx))
+    relief = np.real(np.fft.ifft2(amp * phase))
+    relief *= relief_std / relief.std()
+    x = xmin + resolution * np.arange(nx)
+    y = ymin + resolution * np.arange(ny)
+    X, Y = np.meshgrid(x, y)
+    slope_dir = rng.uniform(0, 2 * np.pi)
+    regional = 0.01 * ((X - X.mean()) * np.cos(slope_dir) + (Y - Y.mean()) * np.sin(slope_dir))
+    seamounts = np.zeros_like(X)
+    for _ in range(4):
+        cx, cy = rng.uniform(xmin, xmax), rng.uniform(ymin, ymax)
+        r = rng.uniform(800.0, 2500.0)
+        seamounts -= rng.uniform(80.0, 250.0) * np.exp(-((X - cx) ** 2 + (Y - cy) ** 2) / (2 * r**2))
+    depth = mean_depth + relief + regional + seamounts
+    return Bathymetry(xmin, ymin, resolution, resolution, depth)
+
+
+def _grid_from_axes(x: np.ndarray, y: np.ndarray, z: np.ndarray, where: str) -> Bathymetry:
+    x = np.asarray(x, dtype=float).ravel()
+    y = np.asarray(y, dtype=float).ravel()
+    z = np.asarray(z, dtype=float)
+    if z.shape != (y.size, x.size):
+        raise MapError(f"{where}: depth grid shape {z.shape} does not match y ({y.size}) x x ({x.size})")
+    for name, ax in (("x", x), ("y", y)):
+        d = np.diff(ax)
+        if ax.size < 4 or not np.all(d > 0) or not np.allclose(d, d[0], rtol=1e-6):
+            raise MapError(f"{where}: axis {name!r} must be increasing and uniformly spaced")
+    return Bathymetry(float(x[0]), float(y[0]), float(x[1] - x[0]), float(y[1] - y[0]), z)
+
+
+def _local_metric(lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Equirectangular projection about the grid centre (metres east/north of the SW corner)."""
+    lat0 = np.deg2rad(0.5 * (lat[0] + lat[-1]))
+    x = EARTH_RADIUS_M * np.cos(lat0) * np.deg2rad(lon - lon[0])
+    y = EARTH_RADIUS_M * np.deg2rad(lat - lat[0])
+    return x, y
+
+
+def load_map(path: str | Path, variable: str | None = None) -> Bathymetry:
+    """Read a user grid.
+
+    - ``.npz`` with arrays ``x``, ``y`` (m) and ``depth`` (m, positive down) or ``elevation``
+      (m, negative below sea level), shaped ``[len(y), len(x)]``;
+    - NetCDF (``.nc``), as GEBCO distributes it: ``lon``/``lat`` in degrees (projected
+      equirectangularly about the grid centre to metres) or ``x``/``y`` in metres, and
+      ``elevation`` (or ``depth``, or ``variable``).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MapError(f"{path}: map file not found")
+    try:
+        if path.suffix == ".npz":
+            with np.load(path) as data:
+                arrays = {k: data[k] for k in data.files}
+        elif path.suffix in (".nc", ".nc4", ".netcdf"):
+            arrays = _read_netcdf(path)
+        else:
+            raise MapError(f"{path}: unknown map format (expected .npz or .nc)")
+    except MapError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - any reader failure is a bad file
+        raise MapError(f"{path}: cannot read map ({exc})") from None
+    return _bathymetry_from_arrays(arrays, variable, str(path))
+
+
+def _read_netcdf(path: Path) -> dict[str, np.ndarray]:
+    try:
+        import h5netcdf
+
+        with h5netcdf.File(path, "r") as f:
+            return {k: np.asarray(v[...]) for k, v in f.variables.items()}
+    except OSError:
+        from scipy.io import netcdf_file  # NetCDF-3 classic files
+
+        with netcdf_file(path, "r", mmap=False) as f:
+            return {k: np.array(v[...]) for k, v in f.variables.items()}
+
+
+def _bathymetry_from_arrays(arrays: dict, variable: str | None, where: str) -> Bathymetry:
+    names = [variable] if variable else ["depth", "elevation", "z"]
+    key = next((n for n in names if n in arrays), None)
+    if key is None:
+        raise MapError(f"{where}: no depth variable (looked for {', '.join(names)})")
+    z = np.asarray(arrays[key], dtype=float)
+    if key == "elevation":
+        z = -z
+    if "x" in arrays and "y" in arrays:
+        x, y = arrays["x"], arrays["y"]
+    elif "lon" in arrays and "lat" in arrays:
+        x, y = _local_metric(np.asarray(arrays["lon"], float), np.asarray(arrays["lat"], float))
+    else:
+        raise MapError(f"{where}: no coordinate axes (expected x/y in metres or lon/lat)")
+    return _grid_from_axes(x, y, z, where)

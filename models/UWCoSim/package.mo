@@ -1,6 +1,5 @@
 within;
 package UWCoSim "Truth and process models of the uwcosim AUV navigation testbench"
-  extends Modelica.Icons.Package;
   annotation (
     version = "0.1.0",
     Documentation(info = "<html>

@@ -1,0 +1,3 @@
+within UWCoSim;
+package Examples "Closed-form test harnesses"
+end Examples;

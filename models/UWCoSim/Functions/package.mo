@@ -1,0 +1,3 @@
+within UWCoSim;
+package Functions "Functions used by the sensor models"
+end Functions;

@@ -1,0 +1,7 @@
+"""``python -m uwcosim``."""
+
+import sys
+
+from uwcosim.cli import main
+
+sys.exit(main())

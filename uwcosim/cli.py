@@ -1,0 +1,120 @@
+"""Command-line interface: a thin layer over the library.
+
+``uwcosim run SCENARIO [--seed N] [--out DIR] [--set key=value ...]``
+``uwcosim fmu build|info|validate ...``, ``uwcosim verify example1``.
+User errors are caught once here: one line on stderr, a non-zero exit status, no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from uwcosim.errors import UwcosimError
+
+
+def _cmd_run(args) -> int:
+    from uwcosim.runner import run_scenario
+    from uwcosim.scenario import load_scenario
+
+    loaded = load_scenario(args.scenario, args.set or [])
+    out = Path(args.out) if args.out else Path("runs") / loaded.path.stem
+    result = run_scenario(loaded, out, seed=args.seed, figures=not args.no_figures)
+    from uwcosim.plots.run_figures import results_table
+
+    print(results_table(result.summary), end="")
+    t = result.summary["timing"]
+    print(f"master overhead {1e6 * t['master_overhead_per_step_s']:.1f} us/step, "
+          f"FMUs {1e6 * t['fmus_per_step_s']:.1f} us/step")
+    print(f"run directory: {result.out_dir}")
+    return 0
+
+
+def _cmd_fmu_build(args) -> int:
+    from uwcosim.fmu.build import build_fmus
+
+    for p in build_fmus(args.out, names=args.names or None, force=args.force):
+        print(p)
+    return 0
+
+
+def _cmd_fmu_info(args) -> int:
+    from uwcosim.fmu.info import fmu_info
+
+    print(fmu_info(args.fmu))
+    return 0
+
+
+def _cmd_fmu_validate(args) -> int:
+    from uwcosim.fmu.info import validate
+
+    problems = validate(args.fmu)
+    for p in problems:
+        print(f"{args.fmu}: {p}", file=sys.stderr)
+    if not problems:
+        print(f"{args.fmu}: valid")
+    return 1 if problems else 0
+
+
+def _cmd_verify(args) -> int:
+    from uwcosim.verify.example1 import run_example1
+
+    run_example1(Path(args.out) if args.out else None)
+    return 0
+
+
+def _cmd_summary(args) -> int:
+    print(json.dumps(json.loads(Path(args.run, "summary.json").read_text()), indent=2))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="uwcosim", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("run", help="run a scenario")
+    r.add_argument("scenario")
+    r.add_argument("--seed", type=int, default=None, help="override run.seed")
+    r.add_argument("--out", default=None, help="run directory (default runs/<scenario name>)")
+    r.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="override any scenario key, e.g. --set run.duration=100")
+    r.add_argument("--no-figures", action="store_true", help="skip figures and report")
+    r.set_defaults(func=_cmd_run)
+
+    f = sub.add_parser("fmu", help="build and inspect FMUs")
+    fs = f.add_subparsers(dest="fmu_command", required=True)
+    b = fs.add_parser("build", help="build the project's FMUs into fmus/")
+    b.add_argument("names", nargs="*")
+    b.add_argument("--out", default="fmus")
+    b.add_argument("--force", action="store_true")
+    b.set_defaults(func=_cmd_fmu_build)
+    i = fs.add_parser("info", help="variables and capabilities of an FMU")
+    i.add_argument("fmu")
+    i.set_defaults(func=_cmd_fmu_info)
+    v = fs.add_parser("validate", help="validate an FMU (exit 1 if it has problems)")
+    v.add_argument("fmu")
+    v.set_defaults(func=_cmd_fmu_validate)
+
+    ver = sub.add_parser("verify", help="verification examples")
+    ver.add_argument("example", choices=["example1"])
+    ver.add_argument("--out", default=None)
+    ver.set_defaults(func=_cmd_verify)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except UwcosimError as exc:
+        print(f"uwcosim: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("uwcosim: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

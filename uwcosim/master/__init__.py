@@ -1,0 +1,1 @@
+"""The co-simulation master: FMU adapters, connection graph, sources and the stepping loop."""

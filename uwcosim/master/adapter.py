@@ -1,0 +1,407 @@
+"""One FMU instance behind one small interface, whatever its FMI version and interface type.
+
+:class:`FMUAdapter` wraps fmpy's low-level classes (``FMU2Slave``, ``FMU3Slave`` for
+co-simulation; ``FMU2Model``, ``FMU3Model`` for model exchange, integrated here with fixed-step
+RK4 or an adaptive scipy solver). Everything that can be done once is done once: the archive is
+unzipped once, value references are resolved by name once, and :class:`Binding` keeps ctypes
+arrays (with numpy views on them) ready so a step costs only the FMI calls themselves.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import shutil
+import tempfile
+import zipfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from uwcosim.errors import FMUError
+
+STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
+
+
+def sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def read_description(path: Path):
+    """Model description of an FMU archive, with one-line errors for the usual faults."""
+    import fmpy
+    from fmpy.model_description import read_model_description
+
+    path = Path(path)
+    if not path.is_file():
+        raise FMUError(f"{path}: FMU not found (build the project's FMUs with 'uwcosim fmu build')")
+    try:
+        with zipfile.ZipFile(path) as zf:
+            bad = zf.testzip()
+            if bad is not None:
+                raise FMUError(f"{path}: corrupt FMU archive (bad CRC in {bad})")
+            names = zf.namelist()
+    except zipfile.BadZipFile as exc:
+        raise FMUError(f"{path}: not a valid FMU archive ({exc})") from None
+    if "modelDescription.xml" not in names:
+        raise FMUError(f"{path}: not an FMU (no modelDescription.xml in the archive)")
+    try:
+        md = read_model_description(str(path), validate=False)
+    except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for bad XML
+        raise FMUError(f"{path}: invalid modelDescription.xml ({exc})") from None
+    platforms = fmpy.supported_platforms(str(path))
+    if md.fmiVersion.startswith("3"):
+        here = fmpy.platform_tuple
+    else:
+        here = fmpy.platform
+    if here not in platforms:
+        raise FMUError(
+            f"{path}: no binary for this platform {here} (the FMU has: "
+            f"{', '.join(p for p in platforms if p not in ('c-code',)) or 'none'})"
+        )
+    return md
+
+
+class _Unzipped:
+    """Unzip each archive once per process; removed by :func:`cleanup_unzipped`."""
+
+    dirs: dict[str, str] = {}
+
+    @classmethod
+    def get(cls, path: Path, sha: str) -> str:
+        d = cls.dirs.get(sha)
+        if d is None:
+            from fmpy import extract
+
+            d = tempfile.mkdtemp(prefix="uwcosim_fmu_")
+            extract(str(path), unzipdir=d)
+            cls.dirs[sha] = d
+        return d
+
+
+def cleanup_unzipped() -> None:
+    for d in _Unzipped.dirs.values():
+        shutil.rmtree(d, ignore_errors=True)
+    _Unzipped.dirs.clear()
+
+
+@dataclass
+class Binding:
+    """Value references and a value buffer ready for one get or set call."""
+
+    names: tuple[str, ...]
+    vr: ctypes.Array
+    buf: ctypes.Array
+    view: np.ndarray  # numpy view on buf
+
+    @property
+    def n(self) -> int:
+        return len(self.names)
+
+
+class FMUAdapter:
+    """A single FMU instance (FMI 2.0/3.0, CS/ME) with a uniform stepping interface."""
+
+    def __init__(
+        self,
+        name: str,
+        path: Path,
+        interface: str = "cs",
+        solver: str = "rk4",
+        substeps: int = 1,
+        rtol: float = 1e-8,
+    ) -> None:
+        self.name = name
+        self.path = Path(path)
+        self.md = read_description(self.path)
+        self.sha256 = sha256_file(self.path)
+        self.fmi3 = self.md.fmiVersion.startswith("3")
+        self.interface = interface
+        self.solver = solver
+        self.substeps = substeps
+        self.rtol = rtol
+        self.variables = {v.name: v for v in self.md.modelVariables}
+        self.messages: list[str] = []
+        kind = self.md.coSimulation if interface == "cs" else self.md.modelExchange
+        if kind is None:
+            have = [n for n, k in (("cs", self.md.coSimulation), ("me", self.md.modelExchange))
+                    if k is not None]
+            raise FMUError(
+                f"{self.path}: FMU '{name}' does not support interface '{interface}' "
+                f"(it supports: {', '.join(have)})"
+            )
+        self.model_identifier = kind.modelIdentifier
+        self.nx = int(self.md.numberOfContinuousStates or 0) if interface == "me" else 0
+        self._fmu = None
+        self._instantiated = False
+        self.time_s = 0.0  # wall time spent in this FMU's calls (set by the master)
+
+    # -- variables --------------------------------------------------------------------------
+    def variable(self, name: str):
+        v = self.variables.get(name)
+        if v is None:
+            raise FMUError(f"{self.path}: FMU '{self.name}' has no variable {name!r}")
+        return v
+
+    def bind(self, names: list[str] | tuple[str, ...]) -> Binding:
+        vrt = ctypes.c_uint32
+        vr = (vrt * len(names))(*[self.variable(n).valueReference for n in names])
+        buf = (ctypes.c_double * len(names))()
+        view = np.ctypeslib.as_array(buf) if len(names) else np.zeros(0)
+        return Binding(tuple(names), vr, buf, view)
+
+    # -- life cycle -------------------------------------------------------------------------
+    def _log(self, *args) -> None:
+        # FMI 2: (component, instanceName, status, category, message)
+        # FMI 3: (instanceEnvironment, status, category, message)
+        message = args[-1]
+        status = args[-3]
+        text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+        label = STATUS[status] if 0 <= status < len(STATUS) else str(status)
+        self.messages.append(f"[{label}] {text}")
+        del self.messages[:-20]
+
+    def instantiate(self, parameters: dict, start: dict, t0: float, t_stop: float) -> None:
+        """Instantiate, set parameters and start values, and initialize at ``t0``."""
+        from fmpy import fmi2, fmi3
+
+        unzip = _Unzipped.get(self.path, self.sha256)
+        guid = self.md.instantiationToken if self.fmi3 else self.md.guid
+        cls = {
+            (False, "cs"): fmi2.FMU2Slave, (False, "me"): fmi2.FMU2Model,
+            (True, "cs"): fmi3.FMU3Slave, (True, "me"): fmi3.FMU3Model,
+        }[(self.fmi3, self.interface)]
+        try:
+            fmu = cls(guid=guid, unzipDirectory=unzip, modelIdentifier=self.model_identifier,
+                      instanceName=self.name)
+            if self.fmi3:
+                fmu.instantiate(logMessage=self._log, loggingOn=False)
+            else:
+                cb = fmi2.fmi2CallbackFunctions()
+                cb.logger = fmi2.fmi2CallbackLoggerTYPE(self._log)
+                cb.allocateMemory = fmi2.fmi2CallbackAllocateMemoryTYPE(fmi2.calloc)
+                cb.freeMemory = fmi2.fmi2CallbackFreeMemoryTYPE(fmi2.free)
+                try:
+                    from fmpy.logging import addLoggerProxy
+
+                    addLoggerProxy(ctypes.byref(cb))
+                except Exception:  # noqa: BLE001 - proxy is optional in fmpy
+                    pass
+                fmu.instantiate(callbacks=cb)
+        except FMUError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions here
+            raise FMUError(f"{self.path}: cannot instantiate FMU '{self.name}' ({exc})") from None
+        self._fmu = fmu
+        self._instantiated = True
+        self._raw = fmu._functions
+        self._c = fmu.component
+        self._guard("setup", lambda: self._initialize(fmu, parameters, start, t0, t_stop), t0)
+        self._prepare_fast_calls()
+
+    def _initialize(self, fmu, parameters: dict, start: dict, t0: float, t_stop: float) -> None:
+        if not self.fmi3:
+            fmu.setupExperiment(startTime=t0)
+        values = {**parameters, **start}
+        self.set_values(values)
+        if self.fmi3:
+            fmu.enterInitializationMode(startTime=t0)
+        else:
+            fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        if self.interface == "me":
+            self._event_iteration()
+            fmu.enterContinuousTimeMode()
+
+    def set_values(self, values: dict) -> None:
+        """Set parameters/start values of any type by name (setup only, not the hot path)."""
+        fmu = self._fmu
+        for name, value in values.items():
+            v = self.variable(name)
+            vr = [v.valueReference]
+            t = v.type
+            if t in ("Real", "Float64", "Float32"):
+                (fmu.setFloat64 if self.fmi3 else fmu.setReal)(vr, [float(value)])
+            elif t in ("Integer", "Int32", "Int64", "Enumeration", "UInt32"):
+                (fmu.setInt32 if self.fmi3 and t == "Int32" else
+                 fmu.setInt64 if self.fmi3 and t == "Int64" else
+                 fmu.setUInt32 if self.fmi3 and t == "UInt32" else
+                 fmu.setInt64 if self.fmi3 else fmu.setInteger)(vr, [int(value)])
+            elif t == "Boolean":
+                fmu.setBoolean(vr, [bool(value)])
+            elif t == "String":
+                fmu.setString(vr, [str(value)])
+            else:
+                raise FMUError(f"{self.path}: cannot set variable {name!r} of type {t}")
+
+    def _event_iteration(self) -> None:
+        fmu = self._fmu
+        for _ in range(100):
+            if self.fmi3:
+                need = fmu.updateDiscreteStates()[0]
+            else:
+                fmu.eventInfo.newDiscreteStatesNeeded = 1
+                fmu.newDiscreteStates()
+                need = fmu.eventInfo.newDiscreteStatesNeeded
+            if not need:
+                return
+        raise FMUError(f"{self.path}: FMU '{self.name}': event iteration did not converge")
+
+    def _prepare_fast_calls(self) -> None:
+        p = "fmi3" if self.fmi3 else "fmi2"
+        self._set = self._raw[f"{p}SetFloat64" if self.fmi3 else "fmi2SetReal"]
+        self._get = self._raw[f"{p}GetFloat64" if self.fmi3 else "fmi2GetReal"]
+        if self.interface == "cs":
+            self._do_step = self._raw[f"{p}DoStep"]
+            self._flags = [ctypes.c_bool() for _ in range(3)] + [ctypes.c_double()]
+            self._flag_refs = [ctypes.byref(f) for f in self._flags]
+        else:
+            self._x = (ctypes.c_double * self.nx)()
+            self._dx = (ctypes.c_double * self.nx)()
+            self.xv = np.ctypeslib.as_array(self._x) if self.nx else np.zeros(0)
+            self.dxv = np.ctypeslib.as_array(self._dx) if self.nx else np.zeros(0)
+            self._set_time = self._raw[f"{p}SetTime"]
+            self._set_states = self._raw[f"{p}SetContinuousStates"]
+            self._get_states = self._raw[f"{p}GetContinuousStates"]
+            self._get_der = self._raw[
+                "fmi3GetContinuousStateDerivatives" if self.fmi3 else "fmi2GetDerivatives"
+            ]
+            self._completed = self._raw[f"{p}CompletedIntegratorStep"]
+            flag = ctypes.c_bool if self.fmi3 else ctypes.c_int
+            self._cflags = [flag(), flag()]
+            self._cflag_refs = [ctypes.byref(f) for f in self._cflags]
+
+    # -- hot path ---------------------------------------------------------------------------
+    def _check(self, status: int, what: str, t: float) -> None:
+        if status > 1:
+            label = STATUS[status] if status < len(STATUS) else str(status)
+            last = f": {self.messages[-1]}" if self.messages else ""
+            raise FMUError(f"FMU '{self.name}' ({self.path.name}): {what} returned {label} "
+                           f"at t={t:g}{last}")
+
+    def _guard(self, what: str, fn: Callable, t: float):
+        try:
+            return fn()
+        except FMUError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - fmpy's FMICallException and friends
+            last = f": {self.messages[-1]}" if self.messages else ""
+            raise FMUError(f"FMU '{self.name}' ({self.path.name}): {what} failed at t={t:g} "
+                           f"({exc}){last}") from None
+
+    def set_inputs(self, b: Binding, t: float) -> None:
+        if b.n:
+            if self.fmi3:
+                st = self._set(self._c, b.vr, b.n, b.buf, b.n)
+            else:
+                st = self._set(self._c, b.vr, b.n, b.buf)
+            self._check(st, "set inputs", t)
+
+    def get_outputs(self, b: Binding, t: float) -> np.ndarray:
+        if b.n:
+            if self.fmi3:
+                st = self._get(self._c, b.vr, b.n, b.buf, b.n)
+            else:
+                st = self._get(self._c, b.vr, b.n, b.buf)
+            self._check(st, "get outputs", t)
+        return b.view
+
+    def do_step(self, t: float, h: float, inputs: Binding, input_fn: Callable | None) -> None:
+        """Advance from ``t`` to ``t + h``. Inputs are in ``inputs.view`` (held over the step);
+        for model exchange ``input_fn(t)`` may refresh them at the integrator's stage times."""
+        if self.interface == "cs":
+            self.set_inputs(inputs, t)
+            if self.fmi3:
+                st = self._do_step(self._c, t, h, True, *self._flag_refs)
+            else:
+                st = self._do_step(self._c, t, h, 1)
+            self._check(st, "doStep", t)
+            return
+        if self.solver == "rk4":
+            self._rk4(t, h, inputs, input_fn)
+        else:
+            self._adaptive(t, h, inputs, input_fn)
+        self._finish_me_step(t + h, inputs, input_fn)
+
+    # -- model exchange -----------------------------------------------------------------------
+    def _deriv(self, t: float, x: np.ndarray, inputs: Binding, input_fn) -> np.ndarray:
+        self._check(self._set_time(self._c, t), "setTime", t)
+        if input_fn is not None:
+            input_fn(t, inputs.view)
+        self.set_inputs(inputs, t)
+        if self.nx:
+            self.xv[:] = x
+            self._check(self._set_states(self._c, self._x, self.nx), "setContinuousStates", t)
+            self._check(self._get_der(self._c, self._dx, self.nx), "getDerivatives", t)
+        return self.dxv.copy()
+
+    def states(self) -> np.ndarray:
+        if self.nx:
+            self._check(self._get_states(self._c, self._x, self.nx), "getContinuousStates", 0.0)
+        return self.xv.copy()
+
+    def _rk4(self, t: float, h: float, inputs: Binding, input_fn) -> None:
+        x = self.states()
+        n = self.substeps
+        dt = h / n
+        for i in range(n):
+            ti = t + i * dt
+            k1 = self._deriv(ti, x, inputs, input_fn)
+            k2 = self._deriv(ti + dt / 2, x + dt / 2 * k1, inputs, input_fn)
+            k3 = self._deriv(ti + dt / 2, x + dt / 2 * k2, inputs, input_fn)
+            k4 = self._deriv(ti + dt, x + dt * k3, inputs, input_fn)
+            x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        self._x_end = x
+
+    def _adaptive(self, t: float, h: float, inputs: Binding, input_fn) -> None:
+        from scipy.integrate import solve_ivp
+
+        x0 = self.states()
+        if not self.nx:
+            self._x_end = x0
+            return
+        sol = solve_ivp(lambda tt, xx: self._deriv(tt, xx, inputs, input_fn), (t, t + h), x0,
+                        method="DOP853", rtol=self.rtol, atol=self.rtol * 1e-3)
+        if not sol.success:
+            raise FMUError(f"FMU '{self.name}': adaptive solver failed at t={t:g} ({sol.message})")
+        self._x_end = sol.y[:, -1]
+
+    def _finish_me_step(self, t: float, inputs: Binding, input_fn) -> None:
+        self._check(self._set_time(self._c, t), "setTime", t)
+        if input_fn is not None:
+            input_fn(t, inputs.view)
+        self.set_inputs(inputs, t)
+        if self.nx:
+            self.xv[:] = self._x_end
+            self._check(self._set_states(self._c, self._x, self.nx), "setContinuousStates", t)
+        st = self._completed(self._c, True if self.fmi3 else 1, *self._cflag_refs)
+        self._check(st, "completedIntegratorStep", t)
+        if self._cflags[0].value:
+            self._check(self._raw[("fmi3" if self.fmi3 else "fmi2") + "EnterEventMode"](self._c),
+                        "enterEventMode", t)
+            self._event_iteration()
+            self._fmu.enterContinuousTimeMode()
+
+    # -- end ----------------------------------------------------------------------------------
+    def reset(self) -> None:
+        if self._fmu is not None:
+            self._guard("reset", self._fmu.reset, 0.0)
+
+    def close(self) -> None:
+        fmu, self._fmu = self._fmu, None
+        if fmu is None:
+            return
+        try:
+            fmu.terminate()
+        except Exception:  # noqa: BLE001 - terminate after an error may fail; free anyway
+            pass
+        try:
+            fmu.freeInstance()
+        except Exception:  # noqa: BLE001
+            pass

@@ -1,0 +1,112 @@
+"""Signal sources owned by the master: control inputs, noise, and measurement-loss models.
+
+All randomness comes from :func:`stream`, one independent ``numpy.random.Generator`` per named
+purpose derived from the run seed, so adding a sensor does not change another sensor's noise,
+and the same scenario and seed always give the same samples.
+"""
+
+from __future__ import annotations
+
+import zlib
+
+import numpy as np
+
+from uwcosim.scenario.schema import BernoulliLoss, ControlSpec, GilbertElliottLoss
+
+
+def stream(seed: int, purpose: str) -> np.random.Generator:
+    """An independent generator for ``purpose`` (e.g. ``'noise:process'``, ``'loss:dvl'``)."""
+    return np.random.default_rng([int(seed) & 0xFFFFFFFF, zlib.crc32(purpose.encode())])
+
+
+class TableControl:
+    """A piecewise-linear (or held) table ``[[t, value], ...]``, constant beyond its ends."""
+
+    dynamic = False
+
+    def __init__(self, spec: ControlSpec) -> None:
+        table = np.asarray(spec.table, dtype=float)
+        self.t, self.v = table[:, 0], table[:, 1]
+        self.hold = spec.interpolation == "hold"
+
+    def value(self, t):
+        if self.hold:
+            i = np.searchsorted(self.t, t, side="right") - 1
+            return self.v[np.clip(i, 0, len(self.v) - 1)]
+        return np.interp(t, self.t, self.v)
+
+    def samples(self, times: np.ndarray) -> np.ndarray:
+        return np.asarray(self.value(times), dtype=float)
+
+
+class WaypointHeading:
+    """Heading towards the active waypoint (closed loop on the true position).
+
+    The heading is ``atan2(dy, dx)`` in the frame of eq. (54) (psi from the x axis), unwrapped
+    so it stays continuous; a waypoint is passed when the vehicle comes within
+    ``acceptance_radius``. After the last one the heading is held.
+    """
+
+    dynamic = True
+
+    def __init__(self, spec: ControlSpec) -> None:
+        self.points = np.asarray(spec.waypoints, dtype=float)
+        self.position = spec.position
+        self.radius = spec.acceptance_radius
+        self.reset()
+
+    def reset(self) -> None:
+        self.active = 0
+        self.last = None
+
+    def value_at(self, x: float, y: float) -> float:
+        while self.active < len(self.points):
+            dx, dy = self.points[self.active] - (x, y)
+            if np.hypot(dx, dy) > self.radius:
+                break
+            self.active += 1
+        if self.active >= len(self.points):
+            return self.last if self.last is not None else 0.0
+        psi = float(np.arctan2(dy, dx))
+        if self.last is not None:  # unwrap
+            psi = self.last + (psi - self.last + np.pi) % (2 * np.pi) - np.pi
+        self.last = psi
+        return psi
+
+    def value(self, t):
+        return self.last if self.last is not None else 0.0
+
+
+def white_noise(rng: np.random.Generator, n_steps: int, psd, h: float) -> np.ndarray:
+    """Held white-noise samples ``[n_steps, n]`` of variance ``psd / h`` (PSD held over h)."""
+    psd = np.asarray(psd, dtype=float)
+    return rng.standard_normal((n_steps, psd.size)) * np.sqrt(psd / h)
+
+
+def gaussian(rng: np.random.Generator, n_steps: int, sigma) -> np.ndarray:
+    sigma = np.asarray(sigma, dtype=float)
+    return rng.standard_normal((n_steps, sigma.size)) * sigma
+
+
+def loss_mask(
+    rng: np.random.Generator, n: int, spec: BernoulliLoss | GilbertElliottLoss | None
+) -> np.ndarray:
+    """``True`` where the measurement is received, for ``n`` samples.
+
+    Bernoulli: lost with probability ``p`` (seed 001 eq. 2). Gilbert-Elliott: a two-state
+    Markov chain (good/bad) with transition probabilities ``p_good_to_bad``,
+    ``p_bad_to_good`` and loss probabilities ``loss_good``, ``loss_bad`` per state (bursts).
+    """
+    if spec is None:
+        return np.ones(n, dtype=bool)
+    u = rng.random(n)
+    if isinstance(spec, BernoulliLoss):
+        return u >= spec.p
+    switch = rng.random(n)
+    bad = np.empty(n, dtype=bool)
+    state = False
+    for i in range(n):
+        bad[i] = state
+        state = (switch[i] < spec.p_good_to_bad) if not state else (switch[i] >= spec.p_bad_to_good)
+    p_loss = np.where(bad, spec.loss_bad, spec.loss_good)
+    return u >= p_loss

@@ -1,0 +1,1 @@
+"""Figures of runs and campaigns (matplotlib, Agg backend), small modules by subject."""

@@ -1,0 +1,133 @@
+"""Load a scenario TOML file, apply ``--set key=value`` overrides and validate the schema.
+
+Every problem becomes one :class:`~uwcosim.errors.ScenarioError` line naming the file, the key
+and what was expected. Relative paths in a scenario are relative to the scenario file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+from uwcosim.errors import ScenarioError
+from uwcosim.scenario.schema import Scenario
+
+
+@dataclass(frozen=True)
+class LoadedScenario:
+    """A validated scenario with its source text, the file it came from and its hash."""
+
+    spec: Scenario
+    path: Path
+    text: str
+    overrides: tuple[str, ...]
+
+    @property
+    def base_dir(self) -> Path:
+        return self.path.parent
+
+    def resolve(self, relpath: str) -> Path:
+        p = Path(relpath)
+        return p if p.is_absolute() else (self.base_dir / p).resolve()
+
+    @property
+    def sha256(self) -> str:
+        h = hashlib.sha256(self.text.encode())
+        for o in self.overrides:
+            h.update(b"\0" + o.encode())
+        return h.hexdigest()
+
+
+def _parse_value(text: str) -> Any:
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text  # bare words are strings: --set estimators.pf.resampling=systematic
+
+
+def parse_overrides(items: list[str] | tuple[str, ...], where: str) -> list[tuple[list[str], Any]]:
+    out = []
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ScenarioError(f"{where}: --set {item!r}: expected KEY=VALUE")
+        out.append((key.strip().split("."), _parse_value(value.strip())))
+    return out
+
+
+def _apply(data: dict, keys: list[str], value: Any, where: str) -> None:
+    node = data
+    for i, k in enumerate(keys[:-1]):
+        nxt = node.get(k)
+        if nxt is None:
+            nxt = node[k] = {}
+        if not isinstance(nxt, dict):
+            raise ScenarioError(
+                f"{where}: --set {'.'.join(keys)}: {'.'.join(keys[: i + 1])} is not a table"
+            )
+        node = nxt
+    node[keys[-1]] = value
+
+
+def _allowed_keys(model: type[BaseModel] | None) -> str:
+    if model is None:
+        return ""
+    return ", ".join(model.model_fields)
+
+
+def _submodel(loc: tuple) -> type[BaseModel] | None:
+    """The pydantic model that owns the key at ``loc`` (for 'expected one of')."""
+    model: Any = Scenario
+    for part in loc[:-1]:
+        if isinstance(part, int) or model is None:
+            continue
+        field = getattr(model, "model_fields", {}).get(part)
+        if field is None:
+            continue
+        ann = field.annotation
+        args = getattr(ann, "__args__", ())
+        candidates = [a for a in (ann, *args) if isinstance(a, type) and issubclass(a, BaseModel)]
+        model = candidates[0] if candidates else None
+    return model
+
+
+def format_validation_error(exc: ValidationError, where: str) -> str:
+    err = exc.errors()[0]
+    loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p in ("bernoulli",
+                                                                           "gilbert_elliott")))
+    key = ".".join(str(p) for p in loc) or "(top level)"
+    etype = err["type"]
+    if etype == "extra_forbidden":
+        allowed = _allowed_keys(_submodel(loc))
+        return f"{where}: key '{key}': unknown key (expected one of: {allowed})"
+    if etype == "missing":
+        return f"{where}: key '{key}': required key is missing"
+    msg = err["msg"]
+    if "input" in err and etype not in ("value_error",):
+        return f"{where}: key '{key}': {msg} (got {err['input']!r})"
+    return f"{where}: key '{key}': {msg}"
+
+
+def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> LoadedScenario:
+    """Read, override and validate a scenario; raise ScenarioError with one line on failure."""
+    path = Path(path)
+    where = str(path)
+    if not path.is_file():
+        raise ScenarioError(f"{where}: scenario file not found")
+    text = path.read_text(encoding="utf-8")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{where}: invalid TOML ({exc})") from None
+    for keys, value in parse_overrides(overrides, where):
+        _apply(data, keys, value, where)
+    try:
+        spec = Scenario.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(format_validation_error(exc, where)) from None
+    return LoadedScenario(spec=spec, path=path.resolve(), text=text, overrides=tuple(overrides))

@@ -40,7 +40,9 @@ def read_description(path: Path):
 
     path = Path(path)
     if not path.is_file():
-        raise FMUError(f"{path}: FMU not found (build the project's FMUs with 'uwcosim fmu build')")
+        raise FMUError(
+            f"{path}: FMU not found (build the project's FMUs with 'uwcosim fmu build')"
+        )
     try:
         with zipfile.ZipFile(path) as zf:
             bad = zf.testzip()
@@ -55,11 +57,8 @@ def read_description(path: Path):
         md = read_model_description(str(path), validate=False)
     except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for bad XML
         raise FMUError(f"{path}: invalid modelDescription.xml ({exc})") from None
-    platforms = fmpy.supported_platforms(str(path))
-    if md.fmiVersion.startswith("3"):
-        here = fmpy.platform_tuple
-    else:
-        here = fmpy.platform
+    platforms = fmpy.supported_platforms(str(path))  # fmpy's names for FMI 2 and 3 alike
+    here = fmpy.platform
     if here not in platforms:
         raise FMUError(
             f"{path}: no binary for this platform {here} (the FMU has: "
@@ -163,6 +162,7 @@ class FMUAdapter:
         message = args[-1]
         status = args[-3]
         text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+        text = text.replace("%%", "%")  # FMI 2 messages are printf formats
         label = STATUS[status] if 0 <= status < len(STATUS) else str(status)
         self.messages.append(f"[{label}] {text}")
         del self.messages[:-20]
@@ -187,12 +187,9 @@ class FMUAdapter:
                 cb.logger = fmi2.fmi2CallbackLoggerTYPE(self._log)
                 cb.allocateMemory = fmi2.fmi2CallbackAllocateMemoryTYPE(fmi2.calloc)
                 cb.freeMemory = fmi2.fmi2CallbackFreeMemoryTYPE(fmi2.free)
-                try:
-                    from fmpy.logging import addLoggerProxy
-
-                    addLoggerProxy(ctypes.byref(cb))
-                except Exception:  # noqa: BLE001 - proxy is optional in fmpy
-                    pass
+                # no fmpy logger proxy: it keeps one process-wide logger, which would route every
+                # instance's messages to the last adapter (and crash once that one is gone)
+                self._callbacks = cb
                 fmu.instantiate(callbacks=cb)
         except FMUError:
             raise

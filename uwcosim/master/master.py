@@ -145,7 +145,8 @@ class Master:
             node = _Node(
                 adapter=ad, period=spec.fmus[name].period,
                 inputs=ad.bind(ins),
-                in_slots=np.array([self.slots[drivers[f"{name}.{i}"]] for i in ins], dtype=np.intp),
+                in_slots=np.array([self.slots[drivers[f"{name}.{i}"]] for i in ins],
+                                  dtype=np.intp),
                 outputs=ad.bind(outs),
                 out_slots=np.array([self.slots[f"{name}.{o}"] for o in outs], dtype=np.intp),
             )

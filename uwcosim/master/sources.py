@@ -107,6 +107,9 @@ def loss_mask(
     state = False
     for i in range(n):
         bad[i] = state
-        state = (switch[i] < spec.p_good_to_bad) if not state else (switch[i] >= spec.p_bad_to_good)
+        if state:
+            state = switch[i] >= spec.p_bad_to_good
+        else:
+            state = switch[i] < spec.p_good_to_bad
     p_loss = np.where(bad, spec.loss_bad, spec.loss_good)
     return u >= p_loss

@@ -166,7 +166,7 @@ def synthetic_bathymetry(
     measured for abyssal hills), scaled to ``relief_std``, on top of a regional slope and a few
     Gaussian seamounts. The same seed gives the same map on every machine.
     """
-    xmin, xmax, ymin, ymax = extent
+    xmin, xmax, ymin, ymax = (float(v) for v in extent)
     nx = int(round((xmax - xmin) / resolution)) + 1
     ny = int(round((ymax - ymin) / resolution)) + 1
     rng = np.random.default_rng(seed)
@@ -188,7 +188,8 @@ def synthetic_bathymetry(
     for _ in range(4):
         cx, cy = rng.uniform(xmin, xmax), rng.uniform(ymin, ymax)
         r = rng.uniform(800.0, 2500.0)
-        seamounts -= rng.uniform(80.0, 250.0) * np.exp(-((X - cx) ** 2 + (Y - cy) ** 2) / (2 * r**2))
+        height = rng.uniform(80.0, 250.0)
+        seamounts -= height * np.exp(-((X - cx) ** 2 + (Y - cy) ** 2) / (2 * r**2))
     depth = mean_depth + relief + regional + seamounts
     return Bathymetry(xmin, ymin, resolution, resolution, depth)
 
@@ -198,7 +199,9 @@ def _grid_from_axes(x: np.ndarray, y: np.ndarray, z: np.ndarray, where: str) -> 
     y = np.asarray(y, dtype=float).ravel()
     z = np.asarray(z, dtype=float)
     if z.shape != (y.size, x.size):
-        raise MapError(f"{where}: depth grid shape {z.shape} does not match y ({y.size}) x x ({x.size})")
+        raise MapError(
+            f"{where}: depth grid shape {z.shape} does not match y ({y.size}) x x ({x.size})"
+        )
     for name, ax in (("x", x), ("y", y)):
         d = np.diff(ax)
         if ax.size < 4 or not np.all(d > 0) or not np.allclose(d, d[0], rtol=1e-6):

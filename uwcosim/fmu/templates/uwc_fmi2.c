@@ -49,10 +49,12 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         if (cb == NULL) return NULL;
         *cb = *functions;
     }
-    if (fmuResourceLocation != NULL && uwc_uri_to_path(fmuResourceLocation, path, sizeof(path)) == 0)
+    if (fmuResourceLocation != NULL &&
+        uwc_uri_to_path(fmuResourceLocation, path, sizeof(path)) == 0) {
         resources = path;
-    m = uwc_new(instanceName, fmuGUID, resources, fmuType == fmi2CoSimulation, loggingOn, log_fmi2,
-                cb ? cb->componentEnvironment : NULL, cb);
+    }
+    m = uwc_new(instanceName, fmuGUID, resources, fmuType == fmi2CoSimulation, loggingOn,
+                log_fmi2, cb ? cb->componentEnvironment : NULL, cb);
     if (m == NULL) {
         free(cb);
         return NULL;

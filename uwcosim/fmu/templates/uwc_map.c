@@ -1,6 +1,7 @@
 /* uwc_map.c - bicubic B-spline terrain-depth kernel (see uwc_map.h). */
 #include "uwc_map.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -32,7 +33,7 @@ int uwc_map_load(uwc_map *m, const char *path, char *err, size_t errlen) {
     }
     f = fopen(path, "rb");
     if (f == NULL) {
-        snprintf(err, errlen, "map file '%s' cannot be opened", path);
+        snprintf(err, errlen, "map file '%s' cannot be opened (%s)", path, strerror(errno));
         return -1;
     }
     if (fread(header, 1, sizeof(header), f) != sizeof(header)) {

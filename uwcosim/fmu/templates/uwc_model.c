@@ -261,12 +261,12 @@ static void sleep_seconds(double s) {
 static int faults(uwc_inst *m, double t, int may_hang) {
     const double *p = m->r + UWC_OFF_P;
     if (reached(t, p[UWC_P_FAIL])) {
-        uwc_log(m, UWC_ERROR, "%s: injected failure at time t = %.17g (fail_time = %.17g)",
+        uwc_log(m, UWC_ERROR, "%s: injected failure at time t = %.15g (fail_time = %.15g)",
                 m->name, t, p[UWC_P_FAIL]);
         return fail(m);
     }
     if (may_hang && reached(t, p[UWC_P_HANG])) {
-        uwc_log(m, UWC_WARNING, "%s: injected hang of %g s at time t = %.17g", m->name,
+        uwc_log(m, UWC_WARNING, "%s: injected hang of %g s at time t = %.15g", m->name,
                 p[UWC_P_HANGSEC], t);
         sleep_seconds(p[UWC_P_HANGSEC]);
     }
@@ -297,8 +297,8 @@ static int eval(uwc_inst *m) {
         if (!uwc_map_inside(&m->map, x, y)) {
             const double *e = m->r + UWC_OFF_C;
             uwc_log(m, UWC_ERROR,
-                    "%s: position (x, y) = (%.17g, %.17g) m at t = %.17g is outside the map "
-                    "'%s' (x in [%.17g, %.17g], y in [%.17g, %.17g])",
+                    "%s: position (x, y) = (%.15g, %.15g) m at t = %.15g is outside the map "
+                    "'%s' (x in [%.15g, %.15g], y in [%.15g, %.15g])",
                     m->name, x, y, m->r[0], m->map_path, e[0], e[1], e[2], e[3]);
             return fail(m);
         }

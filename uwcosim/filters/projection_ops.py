@@ -1,0 +1,361 @@
+"""Spectral machinery of the projection filter (seed 000, section 3): basis, quadrature, Galerkin.
+
+A density on the box ``[lo, lo + L]`` (one interval per dimension) is the truncated series
+
+    p(x) = sum_q m_q phi_q(x),   phi_q(x) = prod_d exp(j 2 pi q_d (x_d - lo_d) / L_d) / sqrt(L_d)
+
+over the *symmetric* frequency set ``q_d = -K..K`` (eq. 35 with ``q = -K..K`` instead of
+``0..N-1``: a real density needs ``m_{-q} = conj(m_q)``, and a drift that depends on ``x`` couples
+``q`` to ``q - k`` for both signs of ``k``). Coefficients are stored as a complex array of shape
+``(2K+1,)*n`` indexed by ``q + K`` (C order), with the Hermitian symmetry kept up to round-off.
+
+Inner products are quadratures on the periodic grid ``x_n = lo + n L / M`` (``M`` points per
+dimension), i.e. FFTs (eqs. 41, 45, 46): ``<g, phi_q> = sqrt(L) / M * FFT(g)[q]``. The
+re-projection between two intervals and the moments (eqs. 50-51) use exact integrals of the
+truncated series instead of quadratures.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+import scipy.fft as sfft
+
+TWO_PI = 2.0 * np.pi
+
+
+def fft_size(n: int) -> int:
+    """Smallest even 5-smooth integer >= n (a fast FFT length)."""
+    m = max(int(np.ceil(n)), 2)
+    while True:
+        m = sfft.next_fast_len(m, real=True)
+        if m % 2 == 0:
+            return m
+        m += 1
+
+
+@dataclass
+class SpectralBasis:
+    """Tensor-product complex-exponential basis on a box, with its quadrature grid.
+
+    ``lo`` and ``length`` have one entry per dimension; ``K`` is the highest harmonic (``2K+1``
+    basis functions per dimension) and ``M`` the number of quadrature points per dimension.
+    """
+
+    lo: np.ndarray
+    length: np.ndarray
+    K: int
+    M: int
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self.lo = np.asarray(self.lo, dtype=float).reshape(-1).copy()
+        self.length = np.asarray(self.length, dtype=float).reshape(-1).copy()
+        if self.M < 2 * self.K + 2:
+            raise ValueError(f"quadrature grid M={self.M} too small for K={self.K}")
+
+    @property
+    def n(self) -> int:
+        return self.lo.size
+
+    @property
+    def hi(self) -> np.ndarray:
+        return self.lo + self.length
+
+    @property
+    def size(self) -> int:
+        """Number of basis functions ``(2K+1)^n``."""
+        return (2 * self.K + 1) ** self.n
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return (2 * self.K + 1,) * self.n
+
+    @property
+    def q(self) -> np.ndarray:
+        return np.arange(-self.K, self.K + 1)
+
+    def omega(self, d: int) -> np.ndarray:
+        """Angular frequencies ``2 pi q / L_d`` of dimension ``d``."""
+        return TWO_PI * self.q / self.length[d]
+
+    def axes(self) -> list[np.ndarray]:
+        """The quadrature grid ``x_n = lo + n L / M`` of every dimension (cached)."""
+        ax = self._cache.get("axes")
+        if ax is None:
+            ax = self._cache["axes"] = [
+                self.lo[d] + self.length[d] * np.arange(self.M) / self.M for d in range(self.n)
+            ]
+        return ax
+
+    def cell(self) -> float:
+        """Quadrature weight (cell volume) ``prod L_d / M``."""
+        return float(np.prod(self.length / self.M))
+
+    def moved(self, lo, length) -> SpectralBasis:
+        return SpectralBasis(lo, length, self.K, self.M)
+
+
+# ---------------------------------------------------------------------------------------------
+# grid <-> coefficients
+
+
+@lru_cache(maxsize=64)
+def _half_index(K: int, M: int, n: int) -> tuple:
+    """Index of the coefficients ``q_d = -K..K`` (last axis ``0..K``) in an rfftn array."""
+    idx = np.arange(-K, K + 1) % M
+    return np.ix_(*([idx] * (n - 1) + [np.arange(K + 1)]))
+
+
+def to_grid(m: np.ndarray, basis: SpectralBasis) -> np.ndarray:
+    """Values of the (real) series on the quadrature grid, shape ``(M,)*n`` (indexing 'ij')."""
+    K, M, n = basis.K, basis.M, basis.n
+    half = np.zeros((M,) * (n - 1) + (M // 2 + 1,), dtype=complex)
+    half[_half_index(K, M, n)] = m[..., K:]
+    scale = M**n / np.sqrt(np.prod(basis.length))
+    return sfft.irfftn(half, s=(M,) * n) * scale
+
+
+def from_grid(values: np.ndarray, basis: SpectralBasis) -> np.ndarray:
+    """Coefficients ``<g, phi_q>`` of a real grid function by FFT quadrature (eq. 45)."""
+    K, M, n = basis.K, basis.M, basis.n
+    X = sfft.rfftn(values)
+    m = np.empty(basis.shape, dtype=complex)
+    m[..., K:] = X[_half_index(K, M, n)]
+    # Hermitian completion: m_{-q} = conj(m_q)
+    m[..., :K] = np.conj(np.flip(m[..., K + 1:], axis=tuple(range(n))))
+    return m * (np.sqrt(np.prod(basis.length)) / M**n)
+
+
+def hermitian(m: np.ndarray) -> np.ndarray:
+    """Project onto real densities: ``(m + conj(m_{-q})) / 2``."""
+    return 0.5 * (m + np.conj(np.flip(m, axis=tuple(range(m.ndim)))))
+
+
+def axis_matrix(x: np.ndarray, lo: float, length: float, K: int) -> np.ndarray:
+    """``E[n, q] = phi_q(x_n)`` in one dimension, zero outside ``[lo, lo + length]``."""
+    s = np.asarray(x, dtype=float) - lo
+    q = np.arange(-K, K + 1)
+    E = np.exp(1j * TWO_PI * np.outer(s / length, q)) / np.sqrt(length)
+    E[(s < 0) | (s > length)] = 0.0
+    return E
+
+
+def contract(m: np.ndarray, mats: list[np.ndarray]) -> np.ndarray:
+    """Apply one matrix per axis: ``out[..a_d..] = sum_q prod_d mats[d][a_d, q_d] m[q]``."""
+    if len(mats) == 1:
+        return mats[0] @ m
+    if len(mats) == 2:
+        return mats[0] @ m @ mats[1].T
+    out = m
+    for d, T in enumerate(mats):
+        out = np.moveaxis(np.tensordot(T, out, axes=(1, d)), 0, d)
+    return out
+
+
+def evaluate(m: np.ndarray, basis: SpectralBasis, axes: list[np.ndarray]) -> np.ndarray:
+    """The series on the tensor grid ``axes`` (zero outside the box), real part."""
+    mats = [axis_matrix(a, basis.lo[d], basis.length[d], basis.K) for d, a in enumerate(axes)]
+    return contract(m, mats).real
+
+
+def transfer_matrix(K: int, lo: float, length: float, lo2: float, length2: float) -> np.ndarray:
+    """Exact re-projection in one dimension from ``[lo, lo+L]`` onto ``[lo2, lo2+L2]``.
+
+    ``T[q', q] = integral over the overlap of phi_q conj(phi'_q')``: the L2 projection of the old
+    series (taken as zero outside its interval) onto the new basis.
+    """
+    a = max(lo, lo2)
+    w = min(lo + length, lo2 + length2) - a
+    n = 2 * K + 1
+    if w <= 0.0:
+        return np.zeros((n, n), dtype=complex)
+    q = np.arange(-K, K + 1)
+    om = TWO_PI * q / length
+    om2 = TWO_PI * q / length2
+    # phase om_q (a - lo) - om2_q' (a - lo2) + delta w / 2 = om_q c1 - om2_q' c2 (separable)
+    left = np.exp(-1j * om2 * (a - lo2 + 0.5 * w))
+    right = np.exp(1j * om * (a - lo + 0.5 * w))
+    arg = 0.5 * w * (om[None, :] - om2[:, None])
+    small = np.abs(arg) < 1e-8
+    sinc = np.sin(arg) / np.where(small, 1.0, arg)
+    sinc[small] = 1.0
+    # int over the overlap of exp(j delta s) = w sinc(delta w / 2) exp(j delta w / 2)
+    return (left[:, None] * right[None, :]) * sinc * (w / np.sqrt(length * length2))
+
+
+def reproject(m: np.ndarray, basis: SpectralBasis, new: SpectralBasis) -> np.ndarray:
+    """Coefficients on ``new`` of the series ``m`` on ``basis``."""
+    mats = [
+        transfer_matrix(basis.K, basis.lo[d], basis.length[d], new.lo[d], new.length[d])
+        for d in range(basis.n)
+    ]
+    return contract(m, mats)
+
+
+# ---------------------------------------------------------------------------------------------
+# Gaussian, mass and moments
+
+
+def gaussian_coefficients(mean, cov, basis: SpectralBasis) -> np.ndarray:
+    """Coefficients of ``N(mean, cov)`` (its characteristic function; tails outside ignored)."""
+    mean = np.asarray(mean, float).reshape(-1)
+    cov = np.atleast_2d(np.asarray(cov, float))
+    oms = np.meshgrid(*[basis.omega(d) for d in range(basis.n)], indexing="ij")
+    phase = sum(oms[d] * (mean[d] - basis.lo[d]) for d in range(basis.n))
+    quad = sum(oms[r] * cov[r, s] * oms[s] for r in range(basis.n) for s in range(basis.n))
+    return np.exp(-1j * phase - 0.5 * quad) / np.sqrt(np.prod(basis.length))
+
+
+def mass(m: np.ndarray, basis: SpectralBasis) -> float:
+    """``integral of p = sqrt(prod L) m_0`` (eqs. 39-40)."""
+    return float(np.sqrt(np.prod(basis.length)) * m[(basis.K,) * basis.n].real)
+
+
+def _moment_vectors(basis: SpectralBasis, d: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``int phi_q``, ``int y phi_q``, ``int y^2 phi_q`` over the interval (``y = x - centre``)."""
+    L = basis.length[d]
+    q = basis.q
+    om = TWO_PI * q / L
+    rl = np.sqrt(L)
+    v0 = np.where(q == 0, rl, 0.0).astype(complex)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v1 = np.where(q == 0, 0.0, -1j * rl / om)
+        v2 = np.where(q == 0, L**3 / 12.0 / rl, 2.0 * rl / om**2).astype(complex)
+    return v0, v1, v2
+
+
+def moments(m: np.ndarray, basis: SpectralBasis) -> tuple[np.ndarray, np.ndarray, float]:
+    """Mean, covariance and mass of the series by exact integration (eqs. 50-51)."""
+    n = basis.n
+    vecs = [_moment_vectors(basis, d) for d in range(n)]
+
+    def integral(orders: list[int]) -> float:
+        out = m
+        for d in reversed(range(n)):
+            out = out @ vecs[d][orders[d]]
+        return float(np.real(out))
+
+    mass_ = integral([0] * n)
+    centre = basis.lo + 0.5 * basis.length
+    mu = np.zeros(n)
+    for d in range(n):
+        o = [0] * n
+        o[d] = 1
+        mu[d] = integral(o) / mass_
+    S = np.zeros((n, n))
+    for r in range(n):
+        for s in range(r, n):
+            o = [0] * n
+            if r == s:
+                o[r] = 2
+            else:
+                o[r] = o[s] = 1
+            S[r, s] = S[s, r] = integral(o) / mass_
+    cov = S - np.outer(mu, mu)
+    return centre + mu, cov, mass_
+
+
+def grid_moments(values: np.ndarray, basis: SpectralBasis) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and covariance of nonnegative grid values (trapezoid quadrature, eqs. 50-51)."""
+    axes = basis.axes()
+    n = basis.n
+    w = values / values.sum()
+    marg = [w.sum(axis=tuple(i for i in range(n) if i != d)) for d in range(n)]
+    mu = np.array([marg[d] @ axes[d] for d in range(n)])
+    cov = np.zeros((n, n))
+    for r in range(n):
+        dr = axes[r] - mu[r]
+        cov[r, r] = marg[r] @ (dr * dr)
+        for s in range(r + 1, n):
+            m2 = w if n == 2 else w.sum(axis=tuple(i for i in range(n) if i not in (r, s)))
+            cov[r, s] = cov[s, r] = dr @ m2 @ (axes[s] - mu[s])
+    return mu, cov
+
+
+def _bcast(a: np.ndarray, d: int, n: int) -> np.ndarray:
+    shape = [1] * n
+    shape[d] = a.size
+    return a.reshape(shape)
+
+
+# ---------------------------------------------------------------------------------------------
+# Galerkin matrix of a second-order operator with variable coefficients
+
+
+@lru_cache(maxsize=16)
+def _difference_index(K: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Flat multi-indices ``Q`` (N, n) and the index of ``q - i`` into a ``(4K+1)^n`` array."""
+    grids = np.meshgrid(*([np.arange(-K, K + 1)] * n), indexing="ij")
+    Q = np.stack([g.ravel() for g in grids], axis=1)
+    D = Q[:, None, :] - Q[None, :, :] + 2 * K
+    flat = np.ravel_multi_index(tuple(D[..., d] for d in range(n)), (4 * K + 1,) * n)
+    return Q, flat
+
+
+def field_coefficients(values: np.ndarray, basis: SpectralBasis) -> np.ndarray:
+    """``c_k = (1 / prod L) integral c(x) exp(-j w_k (x - lo))`` for ``k = -2K..2K`` (FFT)."""
+    K, M, n = basis.K, basis.M, basis.n
+    C = sfft.fftn(values) / M**n
+    idx = np.arange(-2 * K, 2 * K + 1) % M
+    return C[np.ix_(*([idx] * n))]
+
+
+def galerkin_matrix(basis: SpectralBasis, c0=None, c1=None, c2=None) -> np.ndarray:
+    """Galerkin matrix ``A[q, i] = <L phi_i, phi_q>`` of the operator
+
+        L u = sum_rs c2[r][s] d2u/dx_r dx_s + sum_s c1[s] du/dx_s + c0 u
+
+    with coefficient fields sampled on the quadrature grid (``None`` = zero). For a field ``c``,
+    ``<c d^a phi_i, phi_q> = c_{q-i} (j w_i)^a``: a Toeplitz structure in ``q - i`` built from
+    one FFT per field (eqs. 41-42). Needs ``M >= 4K+1`` to resolve every difference ``q - i``.
+    """
+    K, n = basis.K, basis.n
+    if basis.M < 4 * K + 1:
+        raise ValueError(f"Galerkin matrix needs M >= 4K+1 = {4 * K + 1}, got {basis.M}")
+    Q, flat = _difference_index(K, n)
+    jw = [1j * TWO_PI * Q[:, d] / basis.length[d] for d in range(n)]  # j w of column i
+    N = Q.shape[0]
+    A = np.zeros((N, N), dtype=complex)
+    if c0 is not None:
+        A += field_coefficients(np.broadcast_to(c0, (basis.M,) * n), basis).ravel()[flat]
+    if c1 is not None:
+        for s in range(n):
+            if c1[s] is None:
+                continue
+            ch = field_coefficients(np.broadcast_to(c1[s], (basis.M,) * n), basis).ravel()
+            A += ch[flat] * jw[s][None, :]
+    if c2 is not None:
+        for r in range(n):
+            for s in range(n):
+                if c2[r][s] is None:
+                    continue
+                ch = field_coefficients(np.broadcast_to(c2[r][s], (basis.M,) * n), basis).ravel()
+                A += ch[flat] * (jw[r] * jw[s])[None, :]
+    return A
+
+
+def diffusion_decay(basis: SpectralBasis, D: np.ndarray) -> np.ndarray:
+    """``exp(-w' D w / 2)`` on the coefficients: a Gaussian convolution of covariance ``D``."""
+    n = basis.n
+    om = [basis.omega(d) for d in range(n)]
+    quad = np.zeros(basis.shape)
+    for r in range(n):
+        for s in range(n):
+            shape_r = [1] * n
+            shape_r[r] = om[r].size
+            shape_s = [1] * n
+            shape_s[s] = om[s].size
+            quad = quad + D[r, s] * om[r].reshape(shape_r) * om[s].reshape(shape_s)
+    return np.exp(-0.5 * quad)
+
+
+def exponential_filter(basis: SpectralBasis, order: float, alpha: float = 36.0) -> np.ndarray:
+    """Spectral filter ``exp(-alpha (|q|/K)^order)`` per dimension (``order`` even, e.g. 8)."""
+    s = np.exp(-alpha * (np.abs(basis.q) / max(basis.K, 1)) ** order)
+    out = s
+    for _ in range(basis.n - 1):
+        out = np.multiply.outer(out, s)
+    return out

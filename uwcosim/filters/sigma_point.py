@@ -1,0 +1,226 @@
+"""Sigma-point Kalman filters: UKF (``ukf``), CKF (``ckf``) and the CUKF of seed 001 (``cukf``).
+
+All three propagate a deterministic point set through the model (``f_batch``/``h_batch``, one
+call per set) and differ in the rule that places and weights the points:
+
+- UKF: scaled unscented transform (Julier 2002; Wan & van der Merwe 2000) with ``alpha``,
+  ``beta``, ``kappa``: ``lambda = alpha^2 (n + kappa) - n``, points ``x`` and
+  ``x +- sqrt(n + lambda) L_i`` (``P = L L'``), mean weights ``lambda/(n + lambda)`` and
+  ``1/(2(n + lambda))``, covariance centre weight ``+ 1 - alpha^2 + beta``.
+- CKF: third-degree spherical-radial cubature rule (Arasaratnam & Haykin 2009): ``2n`` points
+  ``x +- sqrt(n) L_i`` with equal weights ``1/(2n)``.
+- CUKF: see :class:`CubatureUnscentedKalmanFilter`.
+
+Additive noise: the predicted covariance adds ``Q(x, u, dt)`` at the prior mean and the update
+redraws the points from the predicted ``(x, P)`` (so on a linear model every rule reproduces the
+Kalman filter). Weighted means are taken relative to the first point to avoid cancellation with
+large weights; ``P = P - K S K'`` is symmetrized and repaired when the next factorization needs
+it (counted in ``diagnostics['pd_repairs']``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from uwcosim.filters.base import register
+from uwcosim.filters.kalman import FilterBase
+from uwcosim.filters.numerics import kalman_gain, nis, repair_pd, symmetrize
+
+
+@dataclass(frozen=True)
+class SigmaRule:
+    """Points ``x + s [0, L, -L]`` (the centre only if ``center``) and their weights."""
+
+    n: int
+    scale: float  # s: points at x +- s * column_i(L)
+    wm: np.ndarray
+    wc: np.ndarray
+    center: bool
+
+    def points(self, x: np.ndarray, L: np.ndarray) -> np.ndarray:
+        """The point set as rows, ``(2n + center, n)``."""
+        sL = self.scale * L.T  # rows are the scaled columns of L
+        parts = [x[None, :]] if self.center else []
+        parts += [x + sL, x - sL]
+        return np.concatenate(parts, axis=0)
+
+    def moments(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Weighted mean, covariance and deviations ``Y - mean`` of transformed points."""
+        ref = Y[0]
+        m = ref + self.wm @ (Y - ref)  # mean = sum wm_i Y_i, computed relative to Y_0
+        D = Y - m
+        return m, (D.T * self.wc) @ D, D  # P = sum wc_i (Y_i - m)(Y_i - m)'
+
+
+def unscented_rule(n: int, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0):
+    """The scaled unscented rule (``2n + 1`` points)."""
+    if not alpha > 0:
+        raise ValueError(f"alpha must be positive, got {alpha}")
+    lam = alpha**2 * (n + kappa) - n
+    c = n + lam
+    if not c > 0:
+        raise ValueError(f"need alpha^2 (n + kappa) > 0, got n={n}, kappa={kappa}")
+    wm = np.full(2 * n + 1, 0.5 / c)
+    wc = wm.copy()
+    wm[0] = lam / c
+    wc[0] = lam / c + 1.0 - alpha**2 + beta
+    return SigmaRule(n, math.sqrt(c), wm, wc, True)
+
+
+def cubature_rule(n: int) -> SigmaRule:
+    """The third-degree spherical-radial cubature rule (``2n`` points, equal weights)."""
+    w = np.full(2 * n, 0.5 / n)
+    return SigmaRule(n, math.sqrt(n), w, w, False)
+
+
+def cukf_unscented_rule(n: int, a: float) -> SigmaRule:
+    """Seed 001 eq. (7): ``x +- (a sqrt(n P))_i``, ``w_0 = 1 - 1/a^2``, ``w_i = 1/(2 n a^2)``.
+
+    The same weights for mean and covariance (no ``beta`` term), i.e. the scaled rule with
+    ``alpha = a``, ``kappa = 0``, ``beta = 0``.
+    """
+    if not a > 0:
+        raise ValueError(f"a must be positive, got {a}")
+    w = np.full(2 * n + 1, 0.5 / (n * a * a))
+    w[0] = 1.0 - 1.0 / (a * a)
+    return SigmaRule(n, a * math.sqrt(n), w, w, True)
+
+
+class SigmaPointFilter(FilterBase):
+    """Predict/update of a sigma-point filter for a given :class:`SigmaRule`."""
+
+    def __init__(self, model, x0, P0, rule: SigmaRule, measurements=None) -> None:
+        super().__init__(model, x0, P0, measurements)
+        self.rule = rule
+
+    def _points(self, rule: SigmaRule) -> np.ndarray:
+        self.P, L = repair_pd(self.P, self.diagnostics)
+        return rule.points(self.x, L)
+
+    def _propagate(self, X: np.ndarray, rule: SigmaRule, u, dt: float) -> np.ndarray:
+        Q = self.model.Q(self.x, u, dt)
+        Y = np.asarray(self.model.f_batch(X, u, dt))  # Y_i = f(X_i, u)
+        self.x, P, _ = rule.moments(Y)  # x = sum wm_i Y_i
+        self.P = symmetrize(P + Q)  # P = sum wc_i (Y_i - x)(Y_i - x)' + Q
+        self._check("prediction")
+        return Y
+
+    def _correct(self, X: np.ndarray, rule: SigmaRule, z, idx: np.ndarray) -> None:
+        Z = np.asarray(self.model.h_batch(X))[:, idx]  # Z_i = h(X_i)
+        zhat, Pzz, DZ = rule.moments(Z)
+        S = Pzz + self.model.R[np.ix_(idx, idx)]  # S = Pzz + R
+        Pxz = ((X - self.x).T * rule.wc) @ DZ  # Pxz = sum wc_i (X_i - x)(Z_i - z)'
+        K, cho = kalman_gain(Pxz, S, self.diagnostics)  # K = Pxz S^-1
+        y = np.asarray(z, dtype=float)[idx] - zhat  # y = z - zhat
+        self.x = self.x + K @ y  # x = x + K y
+        self.P = symmetrize(self.P - K @ S @ K.T)  # P = P - K S K'
+        self.diagnostics["nis"] = nis(y, cho)
+        self.diagnostics["nis_dof"] = float(idx.size)
+        self._check("update")
+
+    def predict(self, u, dt: float) -> None:
+        self._begin_predict()
+        self._propagate(self._points(self.rule), self.rule, u, dt)
+
+    def update(self, z, mask=None) -> None:
+        idx = self._begin_update(z, mask)
+        if idx is None:
+            return
+        self._correct(self._points(self.rule), self.rule, z, idx)
+
+
+@register("ukf")
+class UnscentedKalmanFilter(SigmaPointFilter):
+    """Additive-noise UKF with the scaled unscented transform.
+
+    Settings: ``alpha`` (default 1: the points spread over the whole uncertainty ellipsoid,
+    which a terrain likelihood needs; 1e-3 as in Wan & van der Merwe makes it nearly an EKF),
+    ``beta`` (2, optimal for Gaussian priors), ``kappa`` (0), ``measurements``.
+    """
+
+    def __init__(self, model, x0, P0, alpha: float = 1.0, beta: float = 2.0,
+                 kappa: float = 0.0, measurements: list[str] | None = None) -> None:
+        rule = unscented_rule(model.nx, float(alpha), float(beta), float(kappa))
+        super().__init__(model, x0, P0, rule, measurements)
+
+
+@register("ckf")
+class CubatureKalmanFilter(SigmaPointFilter):
+    """Cubature Kalman filter (third-degree spherical-radial rule, ``2n`` points)."""
+
+    def __init__(self, model, x0, P0, measurements: list[str] | None = None) -> None:
+        super().__init__(model, x0, P0, cubature_rule(model.nx), measurements)
+
+
+@register("cukf")
+class CubatureUnscentedKalmanFilter(SigmaPointFilter):
+    """The cubature unscented Kalman filter of seed 001, section 3.2, steps 1-8.
+
+    One pass through steps 1-7 consumes two filter cycles: steps 1-3 are an unscented cycle
+    (time k) and steps 4-7 a cubature cycle (time k+1); step 8 repeats. The filter therefore
+    alternates the two rules, starting with the unscented one (``diagnostics['cubature_step']``
+    is 1 on the cubature cycles). Choices where the extracted text is garbled or wrong:
+
+    - eq. (7): sigma points ``x +- (a sqrt(L P))_i`` with the Cholesky factor and weights
+      ``w_0 = 1 - 1/a^2``, ``w_i = 1/(2 L a^2)`` for both mean and covariance, as printed.
+      The text calls ``a`` "a small positive value"; without a ``beta`` term a small ``a``
+      makes covariances of even mildly nonlinear functions indefinite (for ``y = x^2`` the
+      rule gives ``var = 4 m^2 p + (a^2 L - 1) p^2``, negative for ``m = 0``, ``a^2 L < 1``).
+      Default ``a = sqrt(3/L)`` (``a^2 L = 3``, Julier's choice matching the Gaussian's fourth
+      moment, exact ``2 p^2`` above); ``a = 1`` reduces steps 1-3 to the cubature rule.
+    - eqs. (8)-(9): propagate and add ``Q`` as printed.
+    - eqs. (10)-(13): the measurement points are the propagated points ``chi_{k|k-1}`` (not
+      redrawn), as printed; ``redraw=True`` redraws them from ``(x_{k|k-1}, P_{k|k-1})`` instead.
+      With the printed choice ``Q`` is missing from ``P_xz`` and ``P_zz``, so on a linear model
+      with process noise the CUKF is NOT the Kalman filter; with ``redraw=True`` (or ``Q = 0``)
+      it is.
+    - eq. (14): ``K = P_xz P_zz^-1`` (Cholesky solve).
+    - eq. (16): printed ``P = P + K P_z K'``; the sign is wrong, we use ``P = P - K P_zz K'``.
+    - eqs. (17)-(19): ``A_k`` is the Cholesky factor ``S_k`` of the posterior and ``xi_j`` the
+      ``2L`` cubature points ``sqrt(L) [I, -I]``; the measurement propagation ``pi_j`` of (19)
+      is never used and is skipped.
+    - eq. (20): ``N`` is ``L`` (``2L`` points); the covariance is computed in the central form
+      ``sum w (mu - x)(mu - x)'``, algebraically equal to the printed raw-moment form, which
+      cancels catastrophically at positions of 1e4 m.
+    - eqs. (21)-(25): refactorize, redraw, predicted measurement and ``P_zz`` as printed; the
+      duplicated first line of (25) is read as the cross covariance
+      ``P_xz = 1/(2L) sum (xi - x)(pi* - z)'``.
+    - eq. (26): printed ``K = P_zz P_zz^-1``; we use ``K = P_xz P_zz^-1`` and
+      ``P = P - K P_zz K'`` (sign as in (16)).
+    """
+
+    def __init__(self, model, x0, P0, a: float | None = None, redraw: bool = False,
+                 measurements: list[str] | None = None) -> None:
+        n = model.nx
+        a = math.sqrt(3.0 / n) if a is None else float(a)
+        super().__init__(model, x0, P0, cukf_unscented_rule(n, a), measurements)
+        self.cubature = cubature_rule(n)
+        self.redraw = bool(redraw)
+        self._cycle = -1
+        self._propagated: np.ndarray | None = None
+
+    @property
+    def _unscented_cycle(self) -> bool:
+        return self._cycle % 2 == 0
+
+    def predict(self, u, dt: float) -> None:
+        self._begin_predict()
+        self._cycle += 1
+        rule = self.rule if self._unscented_cycle else self.cubature  # steps 1-2 / 4-5
+        Y = self._propagate(self._points(rule), rule, u, dt)
+        self._propagated = Y if self._unscented_cycle and not self.redraw else None
+        self.diagnostics["cubature_step"] = 0.0 if self._unscented_cycle else 1.0
+
+    def update(self, z, mask=None) -> None:
+        idx = self._begin_update(z, mask)
+        if idx is None:
+            return
+        if self._unscented_cycle:  # step 3, eqs. (10)-(16)
+            X = self._propagated if self._propagated is not None else self._points(self.rule)
+            self._propagated = None
+            self._correct(X, self.rule, z, idx)
+        else:  # steps 6-7, eqs. (21)-(26)
+            self._correct(self._points(self.cubature), self.cubature, z, idx)

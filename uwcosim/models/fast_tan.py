@@ -1,0 +1,259 @@
+"""Numpy fast paths for the TAN model: closed-form transition and a tabulated terrain spline.
+
+CasADi's ``map`` costs about 1 ms per 1000 points and a single CasADi call 30-60 us, which is
+the whole budget of a 1000-particle step. For the kinematics of seed 000 eq. (54) with inputs
+and noise held over a step the exact solution is (RK4 reproduces it, the position being
+quadratic in time)::
+
+    p' = p + dt (Rot v + w_p) + dt^2/2 Rot (a e + w_v),   v' = v + dt (a e + w_v)
+
+with ``Rot`` the rotation by ``psi`` and ``e = [cos psi, sin psi]``: a linear map
+``x' = F x + b + G w`` with ``F = [[I, dt Rot], [0, I]]`` and ``G = [[dt I, dt^2/2 Rot],
+[0, dt I]]``.
+
+:class:`FastTerrain` evaluates the same cubic B-spline as :class:`Bathymetry.depth` from a table
+of per-cell bicubic polynomial coefficients (16 per cell, 128 bytes: 32 MB for the default
+25 km x 25 km map at 50 m), one gather and two Horner schemes per point.
+
+:func:`accelerate` swaps a model built by :func:`uwcosim.models.tan.tan_model` for
+:class:`FastTANModel` after checking it against the CasADi functions at random points; any other
+model (or a mismatch) is returned unchanged. The filters call it on construction.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+
+import numpy as np
+
+from uwcosim.models.bathymetry import PAD, Bathymetry
+from uwcosim.models.vehicle import STATE_NAMES
+
+TABLE_MAX_BYTES = 512 * 2**20
+# cubic B-spline basis in the monomial basis: w_a(f) = sum_i M[a, i] f^i
+_M = np.array([[1, -3, 3, -1], [4, 0, -6, 3], [1, 3, 3, -3], [0, 0, 0, 1]], dtype=float) / 6.0
+_TABLES: dict[int, np.ndarray] = {}
+
+
+def _poly_table(bathy: Bathymetry) -> np.ndarray | None:
+    """Per-cell polynomial coefficients ``[cell, 4*i + j]`` of ``u^i v^j`` (cached per map)."""
+    key = id(bathy)
+    table = _TABLES.get(key)
+    if table is not None:
+        return table
+    ny, nx = bathy.shape
+    if (ny - 1) * (nx - 1) * 128 > TABLE_MAX_BYTES:
+        return None
+    c = bathy.coefficients[PAD - 1 : PAD + ny + 1, PAD - 1 : PAD + nx + 1]  # nodes -1 .. n
+    # contract the x stencil (a) then the y stencil (b): separable, 16 + 64 whole-grid passes
+    ci = [sum(_M[a, i] * c[:, a : a + nx - 1] for a in range(4)) for i in range(4)]
+    table = np.empty((ny - 1, nx - 1, 4, 4))
+    for i in range(4):
+        for j in range(4):
+            table[:, :, i, j] = sum(_M[b, j] * ci[i][b : b + ny - 1, :] for b in range(4))
+    table = table.reshape((ny - 1) * (nx - 1), 16)
+    _TABLES[key] = table
+    weakref.finalize(bathy, _TABLES.pop, key, None)
+    return table
+
+
+class FastTerrain:
+    """``h_d(x, y)`` of a :class:`Bathymetry`, vectorized over points, equal to its spline."""
+
+    def __init__(self, bathy: Bathymetry) -> None:
+        self.bathy = bathy
+        ny, nx = bathy.shape
+        self._nx, self._ny = nx, ny
+        self._idx, self._idy = 1.0 / bathy.dx, 1.0 / bathy.dy
+        self._origin = np.array([[bathy.x0], [bathy.y0]])
+        self._inv_spacing = np.array([[self._idx], [self._idy]])
+        self._upper = np.array([[nx - 1.0], [ny - 1.0]])
+        self._last_cell = np.array([[nx - 2], [ny - 2]], dtype=np.intp)
+        self._table = _poly_table(bathy)
+
+    def _cells(self, xy: np.ndarray):
+        """Polynomial coefficients ``C[i, j, n]`` of the cells and the local ``(u, v)``."""
+        uv = xy - self._origin  # (2, n): grid coordinates of the points
+        uv *= self._inv_spacing
+        np.maximum(uv, 0.0, out=uv)
+        np.minimum(uv, self._upper, out=uv)
+        ij = uv.astype(np.intp)
+        np.minimum(ij, self._last_cell, out=ij)
+        uv -= ij  # fractions within the cell
+        cell = ij[1] * (self._nx - 1)
+        cell += ij[0]
+        C = np.ascontiguousarray(self._table.take(cell, axis=0).T).reshape(4, 4, -1)
+        return C, uv[0], uv[1]
+
+    def depth_xy(self, xy: np.ndarray) -> np.ndarray:
+        """Depth at points given as a ``(2, n)`` array of ``[x; y]`` rows."""
+        if self._table is None:
+            return self.bathy.depth(xy[0], xy[1])
+        C, u, v = self._cells(xy)
+        q = C[3] * u  # Horner in u: q_j = sum_i c_ij u^i
+        q += C[2]
+        q *= u
+        q += C[1]
+        q *= u
+        q += C[0]
+        h = q[3] * v  # Horner in v
+        h += q[2]
+        h *= v
+        h += q[1]
+        h *= v
+        h += q[0]
+        return h
+
+    def depth(self, x, y) -> np.ndarray:
+        """Depth at the points (the value at the nearest edge outside the grid)."""
+        h = self.depth_xy(np.array([np.atleast_1d(x), np.atleast_1d(y)], dtype=float))
+        return h if np.ndim(x) else h[0]
+
+    def gradient(self, x, y) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(h_d, dh_d/dx, dh_d/dy)`` at the points."""
+        if self._table is None:
+            return self.bathy.gradient(x, y)
+        C, u, v = self._cells(np.array([np.atleast_1d(x), np.atleast_1d(y)], dtype=float))
+        q = ((C[3] * u + C[2]) * u + C[1]) * u + C[0]
+        dq = (3.0 * C[3] * u + 2.0 * C[2]) * u + C[1]  # d q_j / du
+        h = ((q[3] * v + q[2]) * v + q[1]) * v + q[0]
+        hu = ((dq[3] * v + dq[2]) * v + dq[1]) * v + dq[0]
+        hv = (3.0 * q[3] * v + 2.0 * q[2]) * v + q[1]
+        out = (h, hu * self._idx, hv * self._idy)
+        # outside the grid the clipped spline is flat across the edge: CasADi's bspline is not
+        # clipped, so the filters never rely on the derivative there
+        return out if np.ndim(x) else tuple(a[0] for a in out)
+
+
+class FastTANModel:
+    """The TAN model of :func:`~uwcosim.models.tan.tan_model` in numpy (same protocol)."""
+
+    linear = False
+    Q_depends_on_x = False  # Q = G diag(psd/dt) G' depends on (u, dt) only
+
+    def __init__(self, base) -> None:
+        # no reference to ``base`` is kept: the cache in :func:`accelerate` is keyed by it
+        self.nx, self.nu, self.nw, self.nz = base.nx, base.nu, base.nw, base.nz
+        self.state_names = base.state_names
+        self.measurement_names = base.measurement_names
+        self.q_psd = base.q_psd
+        self.R = base.R
+        self.terrain = getattr(base, "terrain", None)
+        self._fast_terrain = FastTerrain(self.terrain) if self.terrain is not None else None
+        self._key: tuple | None = None
+
+    def _mats(self, u, dt: float):
+        psi, a = float(u[0]), float(u[1])
+        key = (psi, a, float(dt))
+        if key != self._key:
+            c, s = math.cos(psi), math.sin(psi)
+            rot = np.array([[c, -s], [s, c]])
+            F = np.eye(4)
+            F[:2, 2:] = dt * rot
+            G = dt * np.eye(4)
+            G[:2, 2:] = 0.5 * dt * dt * rot
+            acc = np.array([a * c, a * s])
+            b = np.concatenate((0.5 * dt * dt * (rot @ acc), dt * acc))
+            Q = (G * (self.q_psd / dt)) @ G.T  # Q = G diag(psd/dt) G'
+            self._key, self._cache = key, (F, G, b, 0.5 * (Q + Q.T))
+        return self._cache
+
+    def f(self, x, u, dt: float) -> np.ndarray:
+        F, _, b, _ = self._mats(u, dt)
+        return F @ np.asarray(x, dtype=float) + b
+
+    def f_batch(self, X: np.ndarray, u, dt: float) -> np.ndarray:
+        F, _, b, _ = self._mats(u, dt)
+        out = (F @ X.T).T  # column-major result: particle filters read states as columns
+        out += b
+        return out
+
+    def FG(self, x, u, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        F, G, _, _ = self._mats(u, dt)
+        return F.copy(), G.copy()
+
+    def F(self, x, u, dt: float) -> np.ndarray:
+        return self._mats(u, dt)[0].copy()
+
+    def Q(self, x, u, dt: float) -> np.ndarray:
+        return self._mats(u, dt)[3].copy()
+
+    def FQ(self, x, u, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        F, _, _, Q = self._mats(u, dt)
+        return F.copy(), Q.copy()
+
+    def h(self, x) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        if self._fast_terrain is None:
+            return x[2:4].copy()
+        return np.array([x[2], x[3], float(self._fast_terrain.depth(x[0], x[1]))])
+
+    def H(self, x) -> np.ndarray:
+        H = np.zeros((self.nz, 4))
+        H[0, 2] = H[1, 3] = 1.0
+        if self._fast_terrain is not None:
+            _, gx, gy = self._fast_terrain.gradient(x[0], x[1])
+            H[2, 0], H[2, 1] = gx, gy
+        return H
+
+    def h_batch(self, X: np.ndarray) -> np.ndarray:
+        out = np.empty((X.shape[0], self.nz), order="F")
+        out[:, :2] = X[:, 2:4]
+        if self._fast_terrain is not None:
+            out[:, 2] = self._fast_terrain.depth_xy(X.T[:2])
+        return out
+
+
+_FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _looks_like_tan(model) -> bool:
+    return (
+        hasattr(model, "terrain")
+        and hasattr(model, "_f")
+        and tuple(getattr(model, "state_names", ())) == STATE_NAMES
+        and getattr(model, "nu", None) == 2
+        and getattr(model, "nw", None) == 4
+        and model.nz == (2 if model.terrain is None else 3)
+    )
+
+
+def _agrees(fast: FastTANModel, model, rtol: float = 1e-9) -> bool:
+    """Compare f, F, G, h, H with the CasADi model at a few random points inside the map."""
+    rng = np.random.default_rng(12345)
+    if fast.terrain is not None:
+        xmin, xmax, ymin, ymax = fast.terrain.extent
+    else:
+        xmin, xmax, ymin, ymax = -1e4, 1e4, -1e4, 1e4
+    for _ in range(3):
+        x = np.array([rng.uniform(xmin, xmax), rng.uniform(ymin, ymax), *rng.normal(0, 1, 2)])
+        u = np.array([rng.uniform(-np.pi, np.pi), rng.normal(0, 0.1)])
+        dt = float(rng.uniform(0.1, 2.0))
+        pairs = [(fast.f(x, u, dt), model.f(x, u, dt)), (fast.h(x), model.h(x)),
+                 (fast.H(x), model.H(x))]
+        pairs += list(zip(fast.FG(x, u, dt), model.FG(x, u, dt)))
+        for a, b in pairs:
+            if a.shape != b.shape or not np.allclose(a, b, rtol=rtol, atol=rtol):
+                return False
+    return True
+
+
+def accelerate(model):
+    """The numpy :class:`FastTANModel` for a TAN model (validated), else ``model`` itself."""
+    if isinstance(model, FastTANModel) or not _looks_like_tan(model):
+        return model
+    try:
+        cached = _FAST[model]
+    except (KeyError, TypeError):
+        pass
+    else:
+        return model if cached is None else cached
+    fast = FastTANModel(model)
+    if not _agrees(fast, model):
+        fast = None
+    try:
+        _FAST[model] = fast
+    except TypeError:  # pragma: no cover - model without weak references
+        pass
+    return model if fast is None else fast

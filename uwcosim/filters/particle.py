@@ -29,7 +29,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.linalg import solve_triangular
 
-from uwcosim.errors import FilterDivergence
+from uwcosim.errors import FilterDivergence, ScenarioError
 from uwcosim.filters.base import register
 from uwcosim.filters.kalman import FilterBase
 from uwcosim.filters.numerics import cho_solve, cholesky, psd_factor, repair_pd
@@ -113,7 +113,10 @@ class ParticleFilter(FilterBase):
             raise ValueError(f"ess_threshold must be in [0, 1], got {ess_threshold}")
         if float(roughening) < 0.0:
             raise ValueError(f"roughening must be >= 0, got {roughening}")
-        self.resample = RESAMPLERS.get(resampling)
+        try:
+            self.resample = RESAMPLERS.get(resampling)
+        except ScenarioError as exc:  # from_settings prefixes the scenario location
+            raise ValueError(str(exc)) from None
         self.n = int(n_particles)
         self.ess_threshold = float(ess_threshold)
         self.roughening = float(roughening)

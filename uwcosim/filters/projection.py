@@ -77,6 +77,7 @@ class ProjectionFilter(Estimator):
         long_run: bool = True,
         min_halfwidth: float = 0.0,
         resolution_inflation: float = 1.0,
+        refine: float = 0.7,
     ) -> None:
         super().__init__(model, x0, P0)
         if int(K) != K or K < 1:
@@ -90,6 +91,7 @@ class ProjectionFilter(Estimator):
         self.positivity = positivity
         self.min_halfwidth = float(min_halfwidth)
         self.resolution_inflation = float(resolution_inflation)
+        self.refine = float(refine)
         self.part = Partition(model, states, measurements)
         self.kalman = ConditionalKalman(model, self.part, self.x, self.P, long_run)
         self.likelihood = GridLikelihood(model, self.part)
@@ -196,27 +198,20 @@ class ProjectionFilter(Estimator):
         rows_k = [r for r in rows if r in part.rows_kalman]
         rows_g = [r for r in rows if r in part.rows_grid]
         self.kalman.update(self.x, z, rows_k, self.diagnostics)
+        prior = self.m
+        post, mean, cov = self._bayes(self.basis, z, rows_g, record=True)
+        if rows_g and self.refine < 1.0:
+            # re-centre on the posterior (eq. 33 with the posterior moments) and, when the
+            # posterior box is much narrower, redo the product on its finer grid
+            lo, length = self._box(mean, cov)
+            if np.any(length < self.refine * self.basis.length):
+                length = np.minimum(length, self.basis.length)
+                new = self.basis.moved(lo, length)
+                self.m = po.reproject(prior, self.basis, new)
+                self.basis = new
+                post, mean, cov = self._bayes(new, z, rows_g, record=False)
+                self.diagnostics["refined"] = 1.0
         cell = self.basis.cell()
-        values = po.to_grid(self.m, self.basis)
-        self.diagnostics["neg_mass_prior"] = float(-np.minimum(values, 0.0).sum() * cell)
-        if self.positivity == "clip":
-            values = np.maximum(values, 0.0)
-        post = values
-        if rows_g:
-            res = self.basis.length / (2 * self.K + 1) * self.resolution_inflation
-            ll = self.likelihood.loglik(
-                self.basis.axes(), z, rows_g, self.x, res if self.resolution_inflation else None
-            )
-            llmax = float(np.max(ll))
-            post = values * np.exp(ll - llmax)
-            Z = float(post.sum() * cell)  # E' m- (eq. 46)
-            if np.isfinite(Z) and Z > 0:
-                self.diagnostics["loglik"] = float(np.log(Z) + llmax)
-            else:
-                self.diagnostics["update_skipped"] = 1.0
-                post = values
-        # moments of the grid posterior before truncation (eq. 50-51 as quadratures)
-        mean, cov = po.grid_moments(post, self.basis)
         self.m = po.from_grid(post / (post.sum() * cell), self.basis)  # eqs. 45, 47
         if self._filter is not None:
             self.m = self.m * self._filter
@@ -233,6 +228,32 @@ class ProjectionFilter(Estimator):
             self._moments()
         self._set_estimate()
         self._report()
+
+    def _bayes(self, basis, z, rows_g, record: bool):
+        """Prior times likelihood on the quadrature grid of ``basis``; its moments (eq. 50-51)."""
+        cell = basis.cell()
+        values = po.to_grid(self.m, basis)
+        if record:
+            self.diagnostics["neg_mass_prior"] = float(-np.minimum(values, 0.0).sum() * cell)
+        if self.positivity == "clip":
+            values = np.maximum(values, 0.0)
+        post = values
+        if rows_g:
+            res = basis.length / (2 * self.K + 1) * self.resolution_inflation
+            ll = self.likelihood.loglik(
+                basis.axes(), z, rows_g, self.x, res if self.resolution_inflation else None
+            )
+            llmax = float(np.max(ll))
+            post = values * np.exp(ll - llmax)
+            Z = float(post.sum() * cell)  # E' m- (eq. 46)
+            if np.isfinite(Z) and Z > 0:
+                self.diagnostics["loglik"] = float(np.log(Z) + llmax)
+                self.diagnostics.pop("update_skipped", None)
+            else:
+                self.diagnostics["update_skipped"] = 1.0
+                post = values
+        mean, cov = po.grid_moments(post, basis)
+        return post, mean, cov
 
     def _report(self) -> None:
         d = self.diagnostics

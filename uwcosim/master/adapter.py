@@ -240,12 +240,7 @@ class FMUAdapter:
     def _event_iteration(self) -> None:
         fmu = self._fmu
         for _ in range(100):
-            if self.fmi3:
-                need = fmu.updateDiscreteStates()[0]
-            else:
-                fmu.eventInfo.newDiscreteStatesNeeded = 1
-                fmu.newDiscreteStates()
-                need = fmu.eventInfo.newDiscreteStatesNeeded
+            need = (fmu.updateDiscreteStates() if self.fmi3 else fmu.newDiscreteStates())[0]
             if not need:
                 return
         raise FMUError(f"{self.path}: FMU '{self.name}': event iteration did not converge")

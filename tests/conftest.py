@@ -1,0 +1,30 @@
+"""Shared fixtures: the project's FMUs in fmus/ (built incrementally) and scenario helpers."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIOS = ROOT / "scenarios"
+
+
+@pytest.fixture(scope="session")
+def project_fmus() -> Path:
+    """``fmus/`` with every project FMU, built if missing or out of date (about 3 s)."""
+    from uwcosim.fmu.build import build_fmus
+
+    build_fmus(ROOT / "fmus")
+    return ROOT / "fmus"
+
+
+@pytest.fixture
+def tan(project_fmus):
+    """Load ``scenarios/tan_terrain.toml`` with overrides: ``tan(["run.duration=50"])``."""
+    from uwcosim.scenario import load_scenario
+
+    def load(overrides=(), name="tan_terrain.toml"):
+        return load_scenario(SCENARIOS / name, list(overrides))
+
+    return load

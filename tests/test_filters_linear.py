@@ -9,6 +9,7 @@ import pytest
 
 from uwcosim.errors import ScenarioError
 from uwcosim.evaluation.metrics import anees, nees
+from uwcosim.filters import particle, sigma_point, variational  # noqa: F401  (register)
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.filters.kalman import ExtendedKalmanFilter, KalmanFilter
 from uwcosim.filters.sigma_point import (
@@ -113,7 +114,8 @@ SIGMA = [
     pytest.param(lambda m: UnscentedKalmanFilter(m, X0, P0), id="ukf"),
     pytest.param(lambda m: UnscentedKalmanFilter(m, X0, P0, alpha=0.3, kappa=1.0), id="ukf-a0.3"),
     pytest.param(lambda m: CubatureKalmanFilter(m, X0, P0), id="ckf"),
-    pytest.param(lambda m: CubatureUnscentedKalmanFilter(m, X0, P0, redraw=True), id="cukf-redraw"),
+    pytest.param(lambda m: CubatureUnscentedKalmanFilter(m, X0, P0, redraw=True),
+                 id="cukf-redraw"),
     pytest.param(lambda m: ExtendedKalmanFilter(m, X0, P0), id="ekf"),
 ]
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from uwcosim.filters import particle, sigma_point, variational  # noqa: F401  (register)
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.filters.kalman import KalmanFilter
 from uwcosim.filters.variational import (

@@ -111,18 +111,23 @@ class FastTerrain:
         return h if np.ndim(x) else h[0]
 
     def gradient(self, x, y) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(h_d, dh_d/dx, dh_d/dy)`` at the points."""
+        """``(h_d, dh_d/dx, dh_d/dy)`` at the points.
+
+        Outside the grid the clamped depth is flat across the edge and its derivative there is
+        zero (CasADi's ``bspline`` extrapolates instead; the truth FMU stops at the edge).
+        """
         if self._table is None:
             return self.bathy.gradient(x, y)
-        C, u, v = self._cells(np.array([np.atleast_1d(x), np.atleast_1d(y)], dtype=float))
+        xy = np.array([np.atleast_1d(x), np.atleast_1d(y)], dtype=float)
+        uv = (xy - self._origin) * self._inv_spacing
+        flat = (uv < 0.0) | (uv > self._upper)
+        C, u, v = self._cells(xy)
         q = ((C[3] * u + C[2]) * u + C[1]) * u + C[0]
         dq = (3.0 * C[3] * u + 2.0 * C[2]) * u + C[1]  # d q_j / du
         h = ((q[3] * v + q[2]) * v + q[1]) * v + q[0]
         hu = ((dq[3] * v + dq[2]) * v + dq[1]) * v + dq[0]
         hv = (3.0 * q[3] * v + 2.0 * q[2]) * v + q[1]
-        out = (h, hu * self._idx, hv * self._idy)
-        # outside the grid the clipped spline is flat across the edge: CasADi's bspline is not
-        # clipped, so the filters never rely on the derivative there
+        out = (h, np.where(flat[0], 0.0, hu * self._idx), np.where(flat[1], 0.0, hv * self._idy))
         return out if np.ndim(x) else tuple(a[0] for a in out)
 
 

@@ -109,7 +109,9 @@ def format_validation_error(exc: ValidationError, where: str) -> str:
         return f"{where}: key '{key}': required key is missing"
     msg = err["msg"]
     if "input" in err and etype not in ("value_error",):
-        return f"{where}: key '{key}': {msg} (got {err['input']!r})"
+        got = repr(err["input"])
+        got = got if len(got) <= 60 else got[:57] + "..."
+        return f"{where}: key '{key}': {msg} (got {got})"
     return f"{where}: key '{key}': {msg}"
 
 

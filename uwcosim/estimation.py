@@ -122,11 +122,9 @@ class EstimatorBank:
             tr.nees = self.nees(est, master) if tr.diverged_at is None else float("nan")
 
     def nees(self, est: Estimator, master) -> float:
-        """``e' P^-1 e`` with ``e = x_true - x`` (Cholesky solve)."""
+        """``e' P^-1 e`` with ``e = x_true - x`` (NaN if ``P`` is singular)."""
         e = master.bus[self.truth_slots] - est.x
         try:
-            L = np.linalg.cholesky(est.P)
+            return float(e @ np.linalg.solve(est.P, e))
         except np.linalg.LinAlgError:
             return float("nan")
-        y = np.linalg.solve(L, e)
-        return float(y @ y)

@@ -72,7 +72,7 @@ class ProjectionFilter(Estimator):
         states: list | None = None,
         measurements: list[str] | None = None,
         grid_factor: float = 3.0,
-        positivity: str = "clip",
+        positivity: str = "threshold",
         spectral_filter: float = 0.0,
         long_run: bool = True,
         min_halfwidth: float = 0.0,
@@ -84,8 +84,10 @@ class ProjectionFilter(Estimator):
             raise ValueError(f"K must be a positive integer, got {K}")
         if not k_sigma > 0 or not grid_factor >= 2:
             raise ValueError("k_sigma must be > 0 and grid_factor >= 2")
-        if positivity not in ("clip", "none"):
-            raise ValueError(f"positivity must be 'clip' or 'none', got {positivity!r}")
+        if positivity not in ("threshold", "clip", "none"):
+            raise ValueError(
+                f"positivity must be 'threshold', 'clip' or 'none', got {positivity!r}"
+            )
         self.K = int(K)
         self.k_sigma = float(k_sigma)
         self.positivity = positivity
@@ -218,8 +220,8 @@ class ProjectionFilter(Estimator):
         values = po.to_grid(self.m, self.basis)
         neg = float(-np.minimum(values, 0.0).sum() * cell)
         self.diagnostics["neg_mass"] = neg
-        if self.positivity == "clip" and neg > 0:
-            values = np.maximum(values, 0.0)
+        if self.positivity != "none" and neg > 0:
+            values = self._positive(values)
             self.m = po.from_grid(values / (values.sum() * cell), self.basis)
         self._normalize()
         if np.all(np.isfinite(cov)) and np.all(np.diag(cov) > 0):
@@ -229,14 +231,27 @@ class ProjectionFilter(Estimator):
         self._set_estimate()
         self._report()
 
+    def _positive(self, values: np.ndarray) -> np.ndarray:
+        """Remove the truncation's negative lobes from grid values.
+
+        ``"clip"``: ``max(p, 0)``. ``"threshold"``: ``max(p - a, 0)`` with ``a`` the depth of the
+        deepest negative lobe: the positive ripples of the same amplitude go too, so the mass
+        added by clipping is not spread over the whole box (which inflates the variance, hence
+        the next box, hence the ripples: an instability seen on rough terrain).
+        """
+        if self.positivity == "threshold":
+            a = -float(values.min())
+            return np.maximum(values - a, 0.0) if a > 0 else values
+        return np.maximum(values, 0.0)
+
     def _bayes(self, basis, z, rows_g, record: bool):
         """Prior times likelihood on the quadrature grid of ``basis``; its moments (eq. 50-51)."""
         cell = basis.cell()
         values = po.to_grid(self.m, basis)
         if record:
             self.diagnostics["neg_mass_prior"] = float(-np.minimum(values, 0.0).sum() * cell)
-        if self.positivity == "clip":
-            values = np.maximum(values, 0.0)
+        if self.positivity != "none":
+            values = self._positive(values)
         post = values
         if rows_g:
             res = basis.length / (2 * self.K + 1) * self.resolution_inflation

@@ -1,0 +1,152 @@
+"""Time per step of the filters on the TAN model (4 states, 3 measurements, synthetic map).
+
+Compares our UKF with FilterPy's ``UnscentedKalmanFilter`` (same scaled sigma points
+alpha = 1, beta = 2, kappa = 0; ``Q`` set every step like ours) fed either the model's CasADi
+single-point functions (what a user plugs in) or our numpy per-point functions (which isolates
+the algorithm's own overhead), and times the bootstrap PF with 1000 particles against its goal of
+100 us per step. A step is ``predict`` + ``update`` + reading ``x`` and ``P``. Each filter runs
+the same simulated trajectory; the best median of ``--repeats`` runs is reported (the median and
+95th percentile of that run), so a noisy machine does not decide the ratios.
+
+    .venv/bin/python benchmarks/bench_filters.py [--steps 2000] [--repeats 3]
+
+FilterPy is a benchmark-only dependency (``pip install filterpy``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from uwcosim.filters.base import ESTIMATORS  # noqa: E402
+from uwcosim.filters import particle, sigma_point, variational  # noqa: E402, F401
+from uwcosim.models.bathymetry import synthetic_bathymetry  # noqa: E402
+from uwcosim.models.fast_tan import accelerate  # noqa: E402
+from uwcosim.models.tan import tan_model  # noqa: E402
+
+STD0 = np.array([30.0, 30.0, 0.05, 0.05])
+START = np.array([2000.0, 18000.0, 0.5, 0.0])
+
+
+def controls(k: int) -> np.ndarray:
+    return np.array([0.4 * np.sin(k / 60.0), 0.0005 if k < 200 else 0.0])
+
+
+def simulate(model, steps: int, seed: int = 1):
+    rng = np.random.default_rng(seed)
+    x = START.copy()
+    xs, zs = [], []
+    for k in range(steps):
+        u = controls(k)
+        x = model.f(x, u, 1.0) + np.linalg.cholesky(model.Q(x, u, 1.0)) @ rng.standard_normal(4)
+        xs.append(x)
+        zs.append(model.h(x) + np.sqrt(np.diag(model.R)) * rng.standard_normal(3))
+    return np.array(xs), np.array(zs), START + STD0 * rng.standard_normal(4)
+
+
+def time_ours(name, model, zs, x0, settings):
+    est = ESTIMATORS.get(name).from_settings(model, x0, np.diag(STD0**2), settings)
+    times = np.empty(len(zs))
+    xs = np.empty((len(zs), 4))
+    for k, z in enumerate(zs):
+        u = controls(k)
+        t0 = time.perf_counter()
+        est.predict(u, 1.0)
+        est.update(z)
+        x, _ = est.x, est.P
+        times[k] = time.perf_counter() - t0
+        xs[k] = x
+    return times, xs
+
+
+def time_filterpy(model, zs, x0, fx1, hx1):
+    from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+
+    points = MerweScaledSigmaPoints(4, alpha=1.0, beta=2.0, kappa=0.0)
+    ukf = UnscentedKalmanFilter(4, 3, 1.0, hx=hx1, fx=fx1, points=points)
+    ukf.x = x0.copy()
+    ukf.P = np.diag(STD0**2)
+    ukf.R = model.R.copy()
+    times = np.empty(len(zs))
+    xs = np.empty((len(zs), 4))
+    for k, z in enumerate(zs):
+        u = controls(k)
+        t0 = time.perf_counter()
+        ukf.Q = model.Q(ukf.x, u, 1.0)
+        ukf.predict(dt=1.0, u=u)
+        ukf.update(z)
+        x, _ = ukf.x, ukf.P
+        times[k] = time.perf_counter() - t0
+        xs[k] = x
+    return times, xs
+
+
+def best(fn, repeats: int):
+    runs = [fn() for _ in range(repeats)]
+    times, xs = min(runs, key=lambda r: np.median(r[0]))
+    return np.median(times) * 1e6, np.percentile(times, 95) * 1e6, xs
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--particles", type=int, default=1000)
+    args = ap.parse_args()
+
+    terrain = synthetic_bathymetry(7)
+    model = tan_model([0.01, 0.01, 1e-6, 1e-6], 0.05, 2.0, terrain)
+    fast = accelerate(model)
+    truth, zs, x0 = simulate(model, args.steps)
+    print(f"TAN model, {args.steps} steps, best of {args.repeats} runs; "
+          f"{platform.processor() or platform.machine()}, numpy {np.__version__}")
+
+    rows = []
+    ours = {}
+    for name, settings in (("ukf", {}), ("ekf", {}), ("ckf", {}), ("cukf", {}),
+                           ("vbakf", {}), ("pf", {"seed": 1, "n_particles": args.particles})):
+        med, p95, xs = best(lambda n=name, s=settings: time_ours(n, model, zs, x0, s),
+                            args.repeats)
+        ours[name] = med
+        rows.append((f"ours {name}" + (f"-{args.particles}" if name == "pf" else ""),
+                     med, p95, xs))
+    try:
+        import filterpy  # noqa: F401
+    except ImportError:
+        fp = {}
+        print("filterpy not installed: pip install filterpy for the comparison")
+    else:
+        fp = {}
+        for label, fx1, hx1 in (
+            ("filterpy ukf, casadi fx/hx", lambda x, dt, u: model.f(x, u, dt), model.h),
+            ("filterpy ukf, numpy fx/hx", lambda x, dt, u: fast.f(x, u, dt), fast.h),
+        ):
+            med, p95, xs = best(lambda a=fx1, b=hx1: time_filterpy(model, zs, x0, a, b),
+                                args.repeats)
+            fp[label] = med
+            rows.append((label, med, p95, xs))
+
+    half = slice(args.steps // 2, None)
+    print(f"\n{'filter':32s} {'median us':>10s} {'p95 us':>10s} {'pos RMSE m':>11s}")
+    for label, med, p95, xs in rows:
+        e = (xs - truth)[half, :2]
+        print(f"{label:32s} {med:10.1f} {p95:10.1f} {np.sqrt(np.mean(np.sum(e**2, 1))):11.2f}")
+    print("\ngoals")
+    for label, med in fp.items():
+        r = ours["ukf"] / med
+        print(f"  ours ukf / {label:28s} = {r:5.3f}  (goal <= 0.333: "
+              f"{'met' if r <= 1 / 3 else 'NOT met'})")
+    pf = ours["pf"]
+    print(f"  ours pf-{args.particles} per step {'':19s} = {pf:5.1f} us (goal <= 100 us: "
+          f"{'met' if pf <= 100 else 'NOT met'})")
+
+
+if __name__ == "__main__":
+    main()

@@ -176,5 +176,6 @@ def test_ekf_diagnostics_and_masks(model):
     est.predict(controls(0), 1.0)
     est.update(model.h(START), np.array([True, True, False]))
     assert est.diagnostics["nis_dof"] == 2.0
-    est.update(None)
-    assert est.diagnostics == {}
+    assert est.diagnostics["pd_repairs"] == 0.0
+    est.update(None)  # a new step without predict: fresh diagnostics, no NIS
+    assert est.diagnostics == {"pd_repairs": 0.0}

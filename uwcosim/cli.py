@@ -70,6 +70,21 @@ def _cmd_summary(args) -> int:
     return 0
 
 
+def _cmd_campaign(args) -> int:
+    from uwcosim.campaign import load_campaign
+    from uwcosim.campaign.run import run_campaign
+
+    campaign = load_campaign(args.spec)
+    out = Path(args.out) if args.out else Path("runs") / f"campaign_{campaign.path.stem}"
+    summary = run_campaign(campaign, out, runs=args.runs, workers=args.workers,
+                           scheduler=args.scheduler, resume=args.resume)
+    print((out / "table.md").read_text() if (out / "table.md").exists() else "no results")
+    for f in summary.get("failed", []):
+        print(f"failed: {f['variant']} run {f['run']}: {f['error']}", file=sys.stderr)
+    print(f"{summary['runs']} runs in {out} ({summary['wall_time_s']:.1f} s)")
+    return 1 if summary.get("failed") else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="uwcosim", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -96,6 +111,15 @@ def build_parser() -> argparse.ArgumentParser:
     v = fs.add_parser("validate", help="validate an FMU (exit 1 if it has problems)")
     v.add_argument("fmu")
     v.set_defaults(func=_cmd_fmu_validate)
+
+    c = sub.add_parser("campaign", help="Monte Carlo campaign (local processes or Dask)")
+    c.add_argument("spec")
+    c.add_argument("--runs", type=int, default=None, help="runs per variant (default: spec)")
+    c.add_argument("--workers", type=int, default=None, help="local processes (default: cores)")
+    c.add_argument("--scheduler", default=None, help="Dask scheduler, e.g. tcp://host:8786")
+    c.add_argument("--out", default=None, help="campaign directory")
+    c.add_argument("--resume", action="store_true", help="skip runs already finished")
+    c.set_defaults(func=_cmd_campaign)
 
     ver = sub.add_parser("verify", help="verification examples")
     ver.add_argument("example", choices=["example1"])

@@ -2,7 +2,8 @@
 
 :class:`FilterBase` holds what every filter of the package shares: the ``measurements`` setting
 (the subset of measurement names a filter uses), per-step diagnostics (reset when a step begins,
-i.e. at ``predict``, or at ``update`` when no ``predict`` came before it), finiteness checks that
+i.e. at ``predict``, or at ``update`` when no ``predict`` came before it; ``pd_repairs`` always,
+``nis``/``nis_dof`` after an update with data, plus each filter's own), finiteness checks that
 raise :class:`~uwcosim.errors.FilterDivergence`, and the numpy fast path of the TAN model
 (:func:`uwcosim.models.fast_tan.accelerate`, checked against CasADi).
 
@@ -46,21 +47,30 @@ class FilterBase(Estimator):
         super().__init__(accelerate(model), x0, P0)
         self._use = measurement_use(model, measurements)
         self._predicted = False
+        self._R_blocks: dict[bytes, np.ndarray] = {}
         check_finite("initial state or covariance", self.x, self.P)
 
     def _begin_predict(self) -> None:
-        self.diagnostics = {}
+        self.diagnostics = {"pd_repairs": 0.0}
         self._predicted = True
 
     def _begin_update(self, z, mask) -> np.ndarray | None:
         """Start the update half of a step; the indices of the usable components (or None)."""
         if not self._predicted:
-            self.diagnostics = {}
+            self.diagnostics = {"pd_repairs": 0.0}
         self._predicted = False
         if z is None:
             return None
         mask = self._use if mask is None else (np.asarray(mask, dtype=bool) & self._use)
         return select(z, mask, self.model.nz)
+
+    def _R(self, idx: np.ndarray) -> np.ndarray:
+        """``R[idx, idx]`` (cached per set of components)."""
+        key = idx.tobytes()
+        R = self._R_blocks.get(key)
+        if R is None:
+            R = self._R_blocks[key] = self.model.R[np.ix_(idx, idx)]
+        return R
 
     def _check(self, what: str) -> None:
         check_finite(f"{self.kind} {what}", self.x, self.P)
@@ -89,7 +99,7 @@ class ExtendedKalmanFilter(FilterBase):
             return
         z = np.asarray(z, dtype=float)
         H = self.model.H(self.x)[idx]
-        R = self.model.R[np.ix_(idx, idx)]
+        R = self._R(idx)
         y = z[idx] - self.model.h(self.x)[idx]  # y = z - h(x)
         PHt = self.P @ H.T
         S = H @ PHt + R  # S = H P H' + R

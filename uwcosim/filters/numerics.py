@@ -38,7 +38,7 @@ def cholesky(P: np.ndarray) -> np.ndarray | None:
 def check_finite(what: str, *arrays: np.ndarray) -> None:
     """Raise :class:`FilterDivergence` if any array holds NaN or inf."""
     for a in arrays:
-        if not np.isfinite(a).all():
+        if not np.isfinite(np.sum(a)) and not np.isfinite(a).all():  # sum: one cheap pass
             raise FilterDivergence(f"{what} contains NaN or inf")
 
 
@@ -71,6 +71,15 @@ def repair_pd(
     raise FilterDivergence("covariance not positive definite beyond repair")
 
 
+def factor(P: np.ndarray, counter: dict[str, float] | None = None):
+    """``(P, L)`` for a symmetric ``P`` already checked finite: plain Cholesky, and
+    :func:`repair_pd` (counted) only when that fails."""
+    L = cholesky(P)
+    if L is not None:
+        return P, L
+    return repair_pd(P, counter)
+
+
 def cho_solve(cho, B: np.ndarray) -> np.ndarray:
     """``A^-1 B`` from ``cho = (L, True)``, the lower Cholesky factor of ``A``."""
     B = np.asarray(B, dtype=float)
@@ -82,8 +91,12 @@ def cho_solve(cho, B: np.ndarray) -> np.ndarray:
 
 
 def kalman_gain(PHt: np.ndarray, S: np.ndarray, counter=None) -> tuple[np.ndarray, tuple]:
-    """``K = P H' S^-1`` by a Cholesky solve; returns ``(K, cho)`` for reuse (NIS)."""
-    S, L = repair_pd(S, counter)
+    """``K = P H' S^-1`` by a Cholesky solve; returns ``(K, cho)`` for reuse (NIS).
+
+    ``S`` is used as given when its Cholesky factorization succeeds (only its lower triangle is
+    read), else repaired (counted); NaN in ``S`` propagates to ``K`` (callers check the state).
+    """
+    S, L = factor(S, counter)
     cho = (L, True)
     K = cho_solve(cho, PHt.T).T  # K' = S^-1 (P H')'
     return K, cho

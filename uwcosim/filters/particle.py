@@ -169,7 +169,7 @@ class ParticleFilter(FilterBase):
 
     # filter -------------------------------------------------------------------------------
     def _noise_factor(self, u, dt: float) -> np.ndarray:
-        key = (tuple(np.asarray(u, dtype=float).ravel()), float(dt))
+        key = (np.asarray(u, dtype=float).tobytes(), float(dt))
         if self._xdep or key != self._noise_key:
             mean = self.particles @ self._w
             self._L = psd_factor(self.model.Q(mean, u, dt))
@@ -183,7 +183,7 @@ class ParticleFilter(FilterBase):
         noise = L @ self.rng.standard_normal((L.shape[1], self.n))  # w_i ~ N(0, Q)
         noise += Xn
         self.particles = noise
-        if not np.isfinite(noise).all():
+        if not np.isfinite(noise.sum()):  # NaN or inf anywhere makes the sum non-finite
             raise FilterDivergence("pf prediction contains NaN or inf")
         self._moments_stale = True
 

@@ -49,6 +49,7 @@ the even filter order), ``long_run`` (long-run velocity-error covariance, True),
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg import expm
 from scipy.sparse.linalg import expm_multiply
 
 from uwcosim.errors import FilterDivergence
@@ -56,6 +57,9 @@ from uwcosim.filters import projection_ops as po
 from uwcosim.filters.base import Estimator, register, select
 from uwcosim.filters.numerics import symmetrize
 from uwcosim.filters.projection_model import ConditionalKalman, GridLikelihood, Partition
+
+
+DENSE_EXPM_MAX = 1200  # basis size up to which exp(A dt) is formed densely
 
 
 @register("pfm_psi")
@@ -178,7 +182,11 @@ class ProjectionFilter(Estimator):
             xk_mid = 0.5 * (xk_before + self.kalman.mean)
             c0, c1, c2 = part.fpe_coefficients(new.axes(), xk_mid, u, dt, inc.Dk / dt)
             A = po.galerkin_matrix(new, c0, c1, c2)
-            self.m = expm_multiply(A * dt, self.m.ravel()).reshape(self.m.shape)  # eq. 43
+            if A.shape[0] <= DENSE_EXPM_MAX:  # scaling and squaring: robust for stiff A
+                mv = expm(A * dt) @ self.m.ravel()
+            else:
+                mv = expm_multiply(A * dt, self.m.ravel())
+            self.m = mv.reshape(self.m.shape)  # eq. 43
         self.basis = new
         self.diagnostics["prior_mass"] = self._normalize()
         if part.drift_constant:  # translation and Gaussian convolution: moments are exact

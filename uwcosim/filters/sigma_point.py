@@ -27,7 +27,7 @@ import numpy as np
 
 from uwcosim.filters.base import register
 from uwcosim.filters.kalman import FilterBase
-from uwcosim.filters.numerics import kalman_gain, nis, repair_pd, symmetrize
+from uwcosim.filters.numerics import factor, kalman_gain, nis, symmetrize
 
 
 @dataclass(frozen=True)
@@ -97,7 +97,7 @@ class SigmaPointFilter(FilterBase):
         self.rule = rule
 
     def _points(self, rule: SigmaRule) -> np.ndarray:
-        self.P, L = repair_pd(self.P, self.diagnostics)
+        self.P, L = factor(self.P, self.diagnostics)
         return rule.points(self.x, L)
 
     def _propagate(self, X: np.ndarray, rule: SigmaRule, u, dt: float) -> np.ndarray:
@@ -111,7 +111,7 @@ class SigmaPointFilter(FilterBase):
     def _correct(self, X: np.ndarray, rule: SigmaRule, z, idx: np.ndarray) -> None:
         Z = np.asarray(self.model.h_batch(X))[:, idx]  # Z_i = h(X_i)
         zhat, Pzz, DZ = rule.moments(Z)
-        S = Pzz + self.model.R[np.ix_(idx, idx)]  # S = Pzz + R
+        S = Pzz + self._R(idx)  # S = Pzz + R
         Pxz = ((X - self.x).T * rule.wc) @ DZ  # Pxz = sum wc_i (X_i - x)(Z_i - z)'
         K, cho = kalman_gain(Pxz, S, self.diagnostics)  # K = Pxz S^-1
         y = np.asarray(z, dtype=float)[idx] - zhat  # y = z - zhat

@@ -13,7 +13,8 @@ with ``Rot`` the rotation by ``psi`` and ``e = [cos psi, sin psi]``: a linear ma
 
 :class:`FastTerrain` evaluates the same cubic B-spline as :class:`Bathymetry.depth` from a table
 of per-cell bicubic polynomial coefficients (16 per cell, 128 bytes: 32 MB for the default
-25 km x 25 km map at 50 m), one gather and two Horner schemes per point.
+25 km x 25 km map at 50 m, built once per map in ~0.1 s and shared), one gather and two Horner
+schemes per point. Maps above 512 MB of table fall back to :meth:`Bathymetry.depth`.
 
 :func:`accelerate` swaps a model built by :func:`uwcosim.models.tan.tan_model` for
 :class:`FastTANModel` after checking it against the CasADi functions at random points; any other
@@ -37,7 +38,11 @@ _TABLES: dict[int, np.ndarray] = {}
 
 
 def _poly_table(bathy: Bathymetry) -> np.ndarray | None:
-    """Per-cell polynomial coefficients ``[cell, 4*i + j]`` of ``u^i v^j`` (cached per map)."""
+    """Per-cell polynomial coefficients ``[4*i + j, cell]`` of ``u^i v^j`` (cached per map).
+
+    Coefficient-major: gathering the cells of a point cloud gives the ``(16, n)`` array the
+    Horner schemes run on without a transposing copy.
+    """
     key = id(bathy)
     table = _TABLES.get(key)
     if table is not None:
@@ -48,11 +53,11 @@ def _poly_table(bathy: Bathymetry) -> np.ndarray | None:
     c = bathy.coefficients[PAD - 1 : PAD + ny + 1, PAD - 1 : PAD + nx + 1]  # nodes -1 .. n
     # contract the x stencil (a) then the y stencil (b): separable, 16 + 64 whole-grid passes
     ci = [sum(_M[a, i] * c[:, a : a + nx - 1] for a in range(4)) for i in range(4)]
-    table = np.empty((ny - 1, nx - 1, 4, 4))
+    table = np.empty((4, 4, ny - 1, nx - 1))
     for i in range(4):
         for j in range(4):
-            table[:, :, i, j] = sum(_M[b, j] * ci[i][b : b + ny - 1, :] for b in range(4))
-    table = table.reshape((ny - 1) * (nx - 1), 16)
+            table[i, j] = sum(_M[b, j] * ci[i][b : b + ny - 1, :] for b in range(4))
+    table = table.reshape(16, (ny - 1) * (nx - 1))
     _TABLES[key] = table
     weakref.finalize(bathy, _TABLES.pop, key, None)
     return table
@@ -83,7 +88,7 @@ class FastTerrain:
         uv -= ij  # fractions within the cell
         cell = ij[1] * (self._nx - 1)
         cell += ij[0]
-        C = np.ascontiguousarray(self._table.take(cell, axis=0).T).reshape(4, 4, -1)
+        C = self._table.take(cell, axis=1).reshape(4, 4, -1)
         return C, uv[0], uv[1]
 
     def depth_xy(self, xy: np.ndarray) -> np.ndarray:
@@ -149,17 +154,17 @@ class FastTANModel:
         self._key: tuple | None = None
 
     def _mats(self, u, dt: float):
-        psi, a = float(u[0]), float(u[1])
-        key = (psi, a, float(dt))
+        psi, a, dt = float(u[0]), float(u[1]), float(dt)
+        key = (psi, a, dt)
         if key != self._key:
             c, s = math.cos(psi), math.sin(psi)
-            rot = np.array([[c, -s], [s, c]])
-            F = np.eye(4)
-            F[:2, 2:] = dt * rot
-            G = dt * np.eye(4)
-            G[:2, 2:] = 0.5 * dt * dt * rot
-            acc = np.array([a * c, a * s])
-            b = np.concatenate((0.5 * dt * dt * (rot @ acc), dt * acc))
+            h2 = 0.5 * dt * dt
+            F = np.array([[1.0, 0.0, dt * c, -dt * s], [0.0, 1.0, dt * s, dt * c],
+                          [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+            G = np.array([[dt, 0.0, h2 * c, -h2 * s], [0.0, dt, h2 * s, h2 * c],
+                          [0.0, 0.0, dt, 0.0], [0.0, 0.0, 0.0, dt]])
+            # b = [dt^2/2 Rot a e, dt a e], Rot e = [cos 2psi, sin 2psi]
+            b = np.array([h2 * a * (c * c - s * s), h2 * a * 2.0 * s * c, dt * a * c, dt * a * s])
             Q = (G * (self.q_psd / dt)) @ G.T  # Q = G diag(psd/dt) G'
             self._key, self._cache = key, (F, G, b, 0.5 * (Q + Q.T))
         return self._cache

@@ -80,9 +80,9 @@ def _allowed_keys(model: type[BaseModel] | None) -> str:
     return ", ".join(model.model_fields)
 
 
-def _submodel(loc: tuple) -> type[BaseModel] | None:
+def _submodel(loc: tuple, root: type[BaseModel]) -> type[BaseModel] | None:
     """The pydantic model that owns the key at ``loc`` (for 'expected one of')."""
-    model: Any = Scenario
+    model: Any = root
     for part in loc[:-1]:
         if isinstance(part, int) or model is None:
             continue
@@ -96,14 +96,16 @@ def _submodel(loc: tuple) -> type[BaseModel] | None:
     return model
 
 
-def format_validation_error(exc: ValidationError, where: str) -> str:
+def format_validation_error(
+    exc: ValidationError, where: str, root: type[BaseModel] = Scenario
+) -> str:
     err = exc.errors()[0]
     loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p in ("bernoulli",
                                                                            "gilbert_elliott")))
     key = ".".join(str(p) for p in loc) or "(top level)"
     etype = err["type"]
     if etype == "extra_forbidden":
-        allowed = _allowed_keys(_submodel(loc))
+        allowed = _allowed_keys(_submodel(loc, root))
         return f"{where}: key '{key}': unknown key (expected one of: {allowed})"
     if etype == "missing":
         return f"{where}: key '{key}': required key is missing"

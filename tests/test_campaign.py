@@ -1,0 +1,111 @@
+"""Campaigns: deterministic over worker counts, resumable, failures recorded, Dask cluster."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from uwcosim.campaign import load_campaign
+from uwcosim.campaign.run import run_campaign
+from uwcosim.campaign.spec import run_seed
+from uwcosim.errors import ScenarioError
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SPEC = """
+name = "t"
+seed = 11
+runs = 3
+[[variants]]
+name = "without_terrain"
+scenario = "{root}/scenarios/tan_dead_reckoning.toml"
+set = ["run.duration=40"]
+[[variants]]
+name = "with_terrain"
+scenario = "{root}/scenarios/tan_terrain.toml"
+set = ["run.duration=40"]
+"""
+
+
+@pytest.fixture
+def spec(tmp_path, project_fmus):
+    p = tmp_path / "c.toml"
+    p.write_text(SPEC.format(root=ROOT))
+    return load_campaign(p)
+
+
+def _table(out: Path) -> list[dict]:
+    rows = pq.read_table(out / "runs.parquet").to_pylist()
+    drop = {"time_per_step_s", "total_time_s"}
+    return sorted(({k: v for k, v in r.items() if k not in drop} for r in rows),
+                  key=lambda r: (r["variant"], r["run"], r["estimator"]))
+
+
+def test_results_do_not_depend_on_worker_count(spec, tmp_path):
+    s1 = run_campaign(spec, tmp_path / "a", workers=1, figures=False)
+    s2 = run_campaign(spec, tmp_path / "b", workers=2, figures=True)
+    assert s1["runs"] == s2["runs"] == 6
+    assert _table(tmp_path / "a") == _table(tmp_path / "b")
+    rows = _table(tmp_path / "a")
+    assert {r["seed"] for r in rows} == {run_seed(11, i) for i in range(3)}
+    # the variants of a run share their truth: dead reckoning is identical in both
+    dr = {(r["variant"], r["run"]): r["rmse_position_m"] for r in rows
+          if r["estimator"] == "dead_reckoning"}
+    assert all(dr[("with_terrain", i)] == dr[("without_terrain", i)] for i in range(3))
+    for f in ("table.md", "table.csv", "rmse_summary.png", "report.md",
+              "rmse_per_run_with_terrain.png"):
+        assert (tmp_path / "b" / f).is_file()
+    assert "| with_terrain | ekf | 3 |" in (tmp_path / "b" / "table.md").read_text()
+
+
+def test_resume_skips_finished_runs_and_refuses_to_overwrite(spec, tmp_path):
+    out = tmp_path / "c"
+    run_campaign(spec, out, runs=1, workers=1, figures=False)
+    first = {p.name: p.stat().st_mtime_ns for p in (out / "results").glob("*.json")}
+    assert len(first) == 2
+    with pytest.raises(ScenarioError, match="already has 2 finished runs"):
+        run_campaign(spec, out, runs=2, workers=1, figures=False)
+    s = run_campaign(spec, out, runs=2, workers=1, resume=True, figures=False)
+    assert s["runs"] == 4
+    after = {p.name: p.stat().st_mtime_ns for p in (out / "results").glob("*.json")}
+    assert all(after[k] == v for k, v in first.items())
+
+
+def test_a_failed_run_is_recorded_and_the_campaign_goes_on(tmp_path, project_fmus):
+    p = tmp_path / "c.toml"
+    p.write_text(SPEC.format(root=ROOT) + """
+[[variants]]
+name = "off_map"
+scenario = "{root}/scenarios/tan_terrain.toml"
+set = ["run.duration=40", "fmus.vehicle.start.x=24990.0"]
+""".format(root=ROOT))
+    s = run_campaign(load_campaign(p), tmp_path / "o", runs=1, workers=1, figures=False)
+    assert s["runs"] == 3
+    assert [f["variant"] for f in s["failed"]] == ["off_map"]
+    rec = json.loads((tmp_path / "o/results/off_map__00000.json").read_text())
+    assert rec["status"] == "failed" and "outside the map" in rec["error"]
+    assert (tmp_path / "o/results/with_terrain__00000.json").is_file()
+
+
+def test_bad_campaign_specs(tmp_path):
+    p = tmp_path / "c.toml"
+    p.write_text('runs = 2\n[[variants]]\nname = "a"\nscenario = "nope.toml"\n')
+    with pytest.raises(ScenarioError, match=r"variants\[0\].scenario': file not found"):
+        load_campaign(p)
+    p.write_text('runz = 2\n[[variants]]\nname = "a"\nscenario = "x.toml"\n')
+    with pytest.raises(ScenarioError, match="key 'runz': unknown key"):
+        load_campaign(p)
+
+
+def test_dask_local_cluster(spec, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        s = run_campaign(spec, tmp_path / "d", runs=2, scheduler=cluster.scheduler_address,
+                         figures=False)
+    assert s["runs"] == 4 and not s["failed"]
+    run_campaign(spec, tmp_path / "l", runs=2, workers=1, figures=False)
+    assert _table(tmp_path / "d") == _table(tmp_path / "l")

@@ -1,0 +1,85 @@
+"""Collect a campaign's run records into ``runs.parquet`` and the aggregate table.
+
+``runs.parquet``: one row per (run, estimator) with the run's RMSEs, ANEES, time per step, total
+filter time, divergence flag, seed, variant, status and error. The aggregate (seed 000 eq. 56:
+the mean over runs of each run's RMSE) goes to ``table.md`` and ``table.csv``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+METRICS = ("rmse_position_m", "rmse_x_m", "rmse_y_m", "rmse_velocity_mps", "rmse_vx_mps",
+           "rmse_vy_mps", "anees", "time_per_step_s", "total_time_s")
+
+
+def read_records(results: Path) -> list[dict]:
+    return [json.loads(p.read_text()) for p in sorted(results.glob("*.json"))]
+
+
+def run_rows(records: list[dict]) -> list[dict]:
+    rows = []
+    for r in records:
+        base = {"variant": r["variant"], "run": r["run"], "seed": r["seed"],
+                "status": r["status"], "error": r["error"]}
+        if not r["estimators"]:
+            rows.append({**base, "estimator": "", **{m: float("nan") for m in METRICS},
+                         "diverged": False})
+        for name, m in r["estimators"].items():
+            rows.append({**base, "estimator": name,
+                         **{k: float(m.get(k, float("nan"))) for k in METRICS},
+                         "diverged": bool(m.get("diverged", False))})
+    return rows
+
+
+def write_runs_parquet(rows: list[dict], path: Path) -> Path:
+    cols = {k: [r[k] for r in rows] for k in rows[0]} if rows else {}
+    pq.write_table(pa.table(cols), path)
+    return path
+
+
+def aggregate(rows: list[dict]) -> list[dict]:
+    """Mean over finished, non-diverged runs of each run's metrics, per (variant, estimator)."""
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for r in rows:
+        if r["estimator"]:
+            groups.setdefault((r["variant"], r["estimator"]), []).append(r)
+    out = []
+    for (variant, est), rs in groups.items():
+        ok = [r for r in rs if r["status"] == "ok" and not r["diverged"]]
+        row = {"variant": variant, "estimator": est, "runs": len(ok),
+               "diverged": sum(r["diverged"] for r in rs)}
+        for m in METRICS:
+            vals = np.array([r[m] for r in ok], dtype=float)
+            vals = vals[np.isfinite(vals)]
+            row[m] = float(vals.mean()) if vals.size else float("nan")
+            if m == "rmse_position_m":
+                row["rmse_position_std_m"] = float(vals.std(ddof=1)) if vals.size > 1 else 0.0
+        out.append(row)
+    return out
+
+
+def write_tables(agg: list[dict], out: Path) -> tuple[Path, Path]:
+    md = out / "table.md"
+    lines = ["| variant | estimator | runs | pos. RMSE (m) | x RMSE (m) | y RMSE (m) | vx RMSE "
+             "(m/s) | vy RMSE (m/s) | ANEES | filter time per run (s) | diverged |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in agg:
+        lines.append(
+            f"| {r['variant']} | {r['estimator']} | {r['runs']} | {r['rmse_position_m']:.2f} "
+            f"± {r['rmse_position_std_m']:.2f} | {r['rmse_x_m']:.2f} | {r['rmse_y_m']:.2f} | "
+            f"{r['rmse_vx_mps']:.4f} | {r['rmse_vy_mps']:.4f} | {r['anees']:.2f} | "
+            f"{r['total_time_s']:.2f} | {r['diverged']} |")
+    md.write_text("\n".join(lines) + "\n")
+    path_csv = out / "table.csv"
+    with open(path_csv, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(agg[0]) if agg else ["variant"])
+        w.writeheader()
+        w.writerows(agg)
+    return md, path_csv

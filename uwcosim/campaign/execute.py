@@ -1,0 +1,148 @@
+"""Execute a campaign's runs: in this process, on local worker processes, or on Dask.
+
+Each finished run is written at once to ``results/<variant>__<run>.json`` (atomically), so an
+interruption loses nothing already finished and ``--resume`` skips those runs. A failed run is
+recorded with its error and the campaign goes on.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+import tempfile
+import traceback
+from collections.abc import Callable, Iterable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+from uwcosim.campaign.spec import Task
+from uwcosim.errors import ScenarioError, UwcosimError
+
+_SCENARIOS: dict = {}  # per worker process: (path, overrides) -> LoadedScenario
+
+
+def execute_run(task: Task) -> dict:
+    """Run one task and return its record (never raises: errors are recorded)."""
+    from uwcosim.runner import run_scenario
+    from uwcosim.scenario import load_scenario
+
+    record = {"variant": task.variant, "run": task.run, "seed": task.seed, "status": "ok",
+              "error": "", "estimators": {}}
+    tmp = None
+    try:
+        key = (task.scenario, task.overrides)
+        loaded = _SCENARIOS.get(key)
+        if loaded is None:
+            loaded = _SCENARIOS[key] = load_scenario(task.scenario, list(task.overrides))
+        if task.log_dir:
+            out = Path(task.log_dir)
+        else:
+            tmp = tempfile.mkdtemp(prefix="uwcosim_run_")
+            out = Path(tmp)
+        res = run_scenario(loaded, out, seed=task.seed, figures=False)
+        record["estimators"] = res.summary["estimators"]
+        record["timing"] = res.summary["timing"]
+    except UwcosimError as exc:
+        record.update(status="failed", error=str(exc))
+    except Exception as exc:  # noqa: BLE001 - a campaign records any run failure and goes on
+        last = traceback.extract_tb(exc.__traceback__)[-1]
+        record.update(status="failed", error=f"{type(exc).__name__}: {exc} "
+                                             f"({Path(last.filename).name}:{last.lineno})")
+    finally:
+        if tmp:
+            shutil.rmtree(tmp, ignore_errors=True)
+    return record
+
+
+def _write(results: Path, task: Task, record: dict) -> None:
+    path = results / f"{task.key}.json"
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(record, sort_keys=True))
+    os.replace(tmp, path)
+
+
+def pending_tasks(tasks: list[Task], results: Path, resume: bool) -> list[Task]:
+    done = {p.stem for p in results.glob("*.json")}
+    if done and not resume:
+        raise ScenarioError(f"{results.parent}: campaign output already has {len(done)} "
+                            f"finished runs (use --resume, or another --out)")
+    return [t for t in tasks if t.key not in done]
+
+
+def _progress(total: int, initial: int):
+    try:
+        from tqdm import tqdm
+
+        return tqdm(total=total, initial=initial, unit="run", file=sys.stderr,
+                    dynamic_ncols=True, smoothing=0.1)
+    except ImportError:  # pragma: no cover - tqdm is a dependency
+        return None
+
+
+def run_tasks(tasks: list[Task], results: Path, workers: int, scheduler: str | None,
+              total: int, on_record: Callable[[dict], None] | None = None) -> int:
+    """Run ``tasks``, writing each record as it completes; returns the number of failures."""
+    results.mkdir(parents=True, exist_ok=True)
+    bar = _progress(total, total - len(tasks))
+    failures = 0
+
+    def done(task: Task, record: dict) -> None:
+        nonlocal failures
+        _write(results, task, record)
+        failures += record["status"] != "ok"
+        if on_record:
+            on_record(record)
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(failed=failures)
+
+    try:
+        for task, record in _iterate(tasks, workers, scheduler):
+            done(task, record)
+    finally:
+        if bar is not None:
+            bar.close()
+    return failures
+
+
+def _iterate(tasks: list[Task], workers: int, scheduler: str | None) -> Iterable:
+    if not tasks:
+        return
+    if scheduler:
+        yield from _dask(tasks, scheduler)
+    elif workers <= 1:
+        for t in tasks:
+            yield t, execute_run(t)
+    else:
+        import multiprocessing as mp
+
+        with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as ex:
+            futures = {ex.submit(execute_run, t): t for t in tasks}
+            try:
+                for f in as_completed(futures):
+                    yield futures[f], f.result()
+            except BaseException:
+                for f in futures:
+                    f.cancel()
+                raise
+
+
+def _dask(tasks: list[Task], scheduler: str) -> Iterable:
+    try:
+        from distributed import Client, as_completed as dask_completed
+    except ImportError:
+        raise ScenarioError("--scheduler needs dask.distributed: pip install 'dask[distributed]'"
+                            ) from None
+    try:
+        client = Client(scheduler, timeout="10s")
+    except OSError as exc:
+        raise ScenarioError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+    try:
+        futures = client.map(execute_run, tasks, pure=False)
+        index = dict(zip(futures, tasks))
+        for f in dask_completed(futures):
+            yield index[f], f.result()
+    finally:
+        client.close()

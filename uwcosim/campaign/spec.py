@@ -1,0 +1,112 @@
+"""Campaign spec (TOML): which scenario variants, how many seeded runs, and the run seeds.
+
+Example::
+
+    name = "table1"
+    seed = 2021
+    runs = 100
+    [[variants]]
+    name = "without_terrain"
+    scenario = "../scenarios/tan_dead_reckoning.toml"
+    set = ["estimators.ekf.type=\\"ekf\\""]
+
+Run ``i`` of every variant takes the seed :func:`run_seed` ``(campaign seed, i)``: the variants
+of one run share their truth (common random numbers), and the results do not depend on how many
+workers ran them.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from uwcosim.errors import ScenarioError
+from uwcosim.scenario.load import format_validation_error, load_scenario
+
+
+class Variant(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$")
+    scenario: str
+    set: list[str] = []
+
+
+class CampaignSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    name: str = "campaign"
+    description: str = ""
+    seed: int = 0
+    runs: int = Field(default=10, ge=1)
+    variants: list[Variant] = Field(min_length=1)
+    keep_logs: bool = False
+
+
+@dataclass(frozen=True)
+class Task:
+    """One co-simulation run of a campaign (picklable: sent to worker processes)."""
+
+    variant: str
+    scenario: str  # absolute path
+    overrides: tuple[str, ...]
+    run: int
+    seed: int
+    log_dir: str | None  # where to keep the run directory, or None
+
+    @property
+    def key(self) -> str:
+        return f"{self.variant}__{self.run:05d}"
+
+
+def run_seed(campaign_seed: int, run: int) -> int:
+    """Seed of run ``run``: a SeedSequence of (campaign seed, run), as a 32-bit integer."""
+    return int(np.random.SeedSequence([int(campaign_seed) & 0xFFFFFFFF, run]).generate_state(1)[0])
+
+
+@dataclass(frozen=True)
+class LoadedCampaign:
+    spec: CampaignSpec
+    path: Path
+
+    def resolve(self, rel: str) -> Path:
+        p = Path(rel)
+        return p if p.is_absolute() else (self.path.parent / p).resolve()
+
+    def tasks(self, runs: int | None, out: Path) -> list[Task]:
+        n = runs if runs is not None else self.spec.runs
+        out_logs = out / "logs"
+        return [
+            Task(v.name, str(self.resolve(v.scenario)), tuple(v.set), i,
+                 run_seed(self.spec.seed, i),
+                 str(out_logs / v.name / f"run_{i:05d}") if self.spec.keep_logs else None)
+            for i in range(n) for v in self.spec.variants
+        ]
+
+
+def load_campaign(path: str | Path) -> LoadedCampaign:
+    """Read and validate a campaign spec; every variant's scenario is validated too."""
+    path = Path(path)
+    where = str(path)
+    if not path.is_file():
+        raise ScenarioError(f"{where}: campaign file not found")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{where}: invalid TOML ({exc})") from None
+    try:
+        spec = CampaignSpec.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(format_validation_error(exc, where, CampaignSpec)) from None
+    names = [v.name for v in spec.variants]
+    if len(set(names)) != len(names):
+        raise ScenarioError(f"{where}: key 'variants': variant names must be unique ({names})")
+    loaded = LoadedCampaign(spec, path.resolve())
+    for i, v in enumerate(spec.variants):
+        scen = loaded.resolve(v.scenario)
+        if not scen.is_file():
+            raise ScenarioError(f"{where}: key 'variants[{i}].scenario': file not found: {scen}")
+        load_scenario(scen, v.set)
+    return loaded

@@ -76,12 +76,12 @@ def test_resume_skips_finished_runs_and_refuses_to_overwrite(spec, tmp_path):
 
 def test_a_failed_run_is_recorded_and_the_campaign_goes_on(tmp_path, project_fmus):
     p = tmp_path / "c.toml"
-    p.write_text(SPEC.format(root=ROOT) + """
+    p.write_text(SPEC.format(root=ROOT) + f"""
 [[variants]]
 name = "off_map"
-scenario = "{root}/scenarios/tan_terrain.toml"
+scenario = "{ROOT}/scenarios/tan_terrain.toml"
 set = ["run.duration=40", "fmus.vehicle.start.x=24990.0"]
-""".format(root=ROOT))
+""")
     s = run_campaign(load_campaign(p), tmp_path / "o", runs=1, workers=1, figures=False)
     assert s["runs"] == 3
     assert [f["variant"] for f in s["failed"]] == ["off_map"]

@@ -131,7 +131,8 @@ def _iterate(tasks: list[Task], workers: int, scheduler: str | None) -> Iterable
 
 def _dask(tasks: list[Task], scheduler: str) -> Iterable:
     try:
-        from distributed import Client, as_completed as dask_completed
+        from distributed import Client
+        from distributed import as_completed as dask_completed
     except ImportError:
         raise ScenarioError("--scheduler needs dask.distributed: pip install 'dask[distributed]'"
                             ) from None

@@ -12,14 +12,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
+from uwcosim.evaluation.metrics import position_velocity_indices, rmse, rmse_combined
 from uwcosim.runlog import read_log
-
-
-def _rmse(err: np.ndarray) -> float:
-    ok = np.all(np.isfinite(err), axis=1)
-    if not ok.any():
-        return float("nan")
-    return float(np.sqrt(np.mean(np.sum(err[ok] ** 2, axis=1))))
 
 
 def estimator_metrics(cols: dict, name: str, truth: list[str], states: list[str]) -> dict:
@@ -27,15 +21,15 @@ def estimator_metrics(cols: dict, name: str, truth: list[str], states: list[str]
     X = np.stack([cols[t] for t in truth], axis=1)[1:]
     E = np.stack([cols[f"est.{name}.{s}"] for s in states], axis=1)[1:]
     err = E - X
-    out = {
-        "rmse_position_m": _rmse(err[:, :2]),
-        "rmse_x_m": _rmse(err[:, :1]),
-        "rmse_y_m": _rmse(err[:, 1:2]),
-    }
-    if err.shape[1] >= 4:
-        out["rmse_velocity_mps"] = _rmse(err[:, 2:4])
-        out["rmse_vx_mps"] = _rmse(err[:, 2:3])
-        out["rmse_vy_mps"] = _rmse(err[:, 3:4])
+    pos, vel = position_velocity_indices(states)
+    out = {}
+    for label, unit, idx, axes in (("position", "m", pos, ("x", "y")),
+                                   ("velocity", "mps", vel, ("vx", "vy"))):
+        if not idx:
+            continue
+        out[f"rmse_{label}_{unit}"] = rmse_combined(err[:, idx])
+        for ax, r in zip(axes, rmse(err[:, idx])):
+            out[f"rmse_{ax}_{unit}"] = float(r)
     nees = cols[f"est.{name}.nees"][1:]
     nees = nees[np.isfinite(nees)]
     nx = len(states)

@@ -1,6 +1,11 @@
 """Estimators: one module per family, registered by name in :data:`ESTIMATORS`."""
 
-from uwcosim.filters import kalman  # noqa: F401  (registers ekf, dead_reckoning)
+from uwcosim.filters import (  # noqa: F401  (importing registers the estimators)
+    kalman,
+    particle,
+    sigma_point,
+    variational,
+)
 from uwcosim.filters.base import ESTIMATORS, Estimator, StateSpaceModel, register
 
 __all__ = ["ESTIMATORS", "Estimator", "StateSpaceModel", "register"]

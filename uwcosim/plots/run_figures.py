@@ -15,16 +15,14 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from uwcosim.evaluation.metrics import position_velocity_indices  # noqa: E402
 from uwcosim.runlog import read_log  # noqa: E402
-
-
-def _truth(cols, truth_names):
-    return [cols[n] for n in truth_names]
 
 
 def trajectory_figure(cols, truth_names, est_names, states, bathy, path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(7, 6), dpi=110)
-    tx, ty = _truth(cols, truth_names)[:2]
+    ix, iy = position_velocity_indices(states)[0]
+    tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
     if bathy is not None:
         pad = 1500.0
         xmin, xmax, ymin, ymax = bathy.extent
@@ -38,7 +36,7 @@ def trajectory_figure(cols, truth_names, est_names, states, bathy, path: Path) -
         fig.colorbar(im, ax=ax, label="depth (m)")
     ax.plot(tx, ty, "k-", lw=2, label="truth")
     for name in est_names:
-        ax.plot(cols[f"est.{name}.{states[0]}"], cols[f"est.{name}.{states[1]}"], lw=1,
+        ax.plot(cols[f"est.{name}.{states[ix]}"], cols[f"est.{name}.{states[iy]}"], lw=1,
                 label=name)
     ax.plot(tx[0], ty[0], "ko")
     ax.set_xlabel("x (m)")
@@ -56,12 +54,13 @@ def error_figure(cols, truth_names, est_names, states, path: Path) -> Path:
     t = cols["time"]
     fig, axes = plt.subplots(len(est_names), 1, figsize=(8, 2.2 * len(est_names) + 0.6),
                              dpi=110, sharex=True, squeeze=False)
-    tx, ty = _truth(cols, truth_names)[:2]
+    ix, iy = position_velocity_indices(states)[0]
+    tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
     for ax, name in zip(axes[:, 0], est_names):
-        ex = cols[f"est.{name}.{states[0]}"] - tx
-        ey = cols[f"est.{name}.{states[1]}"] - ty
-        sx = 3 * np.sqrt(cols[f"est.{name}.var.{states[0]}"])
-        sy = 3 * np.sqrt(cols[f"est.{name}.var.{states[1]}"])
+        ex = cols[f"est.{name}.{states[ix]}"] - tx
+        ey = cols[f"est.{name}.{states[iy]}"] - ty
+        sx = 3 * np.sqrt(cols[f"est.{name}.var.{states[ix]}"])
+        sy = 3 * np.sqrt(cols[f"est.{name}.var.{states[iy]}"])
         ax.plot(t, ex, lw=0.8, label="error x")
         ax.plot(t, ey, lw=0.8, label="error y")
         ax.fill_between(t, -sx, sx, color="C0", alpha=0.15, label="±3σ x")

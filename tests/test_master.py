@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -145,3 +147,20 @@ def test_summary_and_timing(tan, tmp_path):
     for f in ("trajectory.png", "position_error.png", "report.md", "summary.json"):
         assert (tmp_path / f).is_file()
     assert "uwcosim run tan_terrain.toml --seed 1" in (tmp_path / "report.md").read_text()
+
+
+def test_lost_measurement_scenario_through_the_cv_fmu(project_fmus, tmp_path):
+    from uwcosim.scenario import load_scenario
+
+    loaded = load_scenario(Path(__file__).resolve().parents[1] / "scenarios"
+                           / "lost_measurements.toml", ["run.duration=300"])
+    res = run_scenario(loaded, tmp_path, figures=False)
+    est = res.summary["estimators"]
+    cols, _ = read_log(res.log_path)
+    rec = cols["z.cv.px.received"][1:]
+    # Bernoulli loss with a = 0.3 over 300 steps: 3.4 binomial sd is about 0.09
+    assert abs((~rec).mean() - 0.3) < 0.09
+    assert np.isnan(cols["z.cv.px"][1:][~rec]).all()
+    # the standard KF skipping lost measurements beats the KF fed zeros (seed 001 eq. 2)
+    assert est["kf_skip"]["rmse_position_m"] < 0.1 * est["kf_zero"]["rmse_position_m"]
+    assert 0.5 < est["kf_skip"]["anees"] < 1.5

@@ -16,7 +16,7 @@ import numpy as np
 
 from uwcosim.errors import FilterDivergence, ScenarioError
 from uwcosim.filters import ESTIMATORS, Estimator
-from uwcosim.master.sources import stream
+from uwcosim.master.sources import gaussian, stream
 
 
 @dataclass
@@ -59,6 +59,19 @@ class EstimatorBank:
             slots += list(sensor.slots)
             sensor_of += [sname] * len(sensor.outputs)
         self.meas_slots = np.array(slots, dtype=np.intp)
+        # sensors with sigma but no noise inputs: the master's stream adds the noise here
+        n = master.n_steps + 1
+        self.additive = np.zeros((n, len(slots)))
+        col = 0
+        for sname in mspec.sensors:
+            s = spec.sensors[sname]
+            if s.sigma and not s.noise_inputs:
+                if len(s.sigma) != len(s.outputs):
+                    self._bad(f"sensors.{sname}.sigma: additive noise needs one sigma per "
+                              f"output ({len(s.outputs)})")
+                self.additive[:, col:col + len(s.outputs)] = gaussian(
+                    stream(master.seed, f"sensor-noise:{sname}"), n, s.sigma)
+            col += len(s.outputs)
         self.sensor_of = sensor_of
         self.received = np.stack([master.sensors[s].received for s in sensor_of], axis=1) \
             if sensor_of else np.zeros((master.n_steps + 1, 0), bool)
@@ -95,7 +108,7 @@ class EstimatorBank:
     def measurements(self, master) -> tuple[np.ndarray, np.ndarray]:
         """``(z, received)`` at the master's current step; z is NaN where not received."""
         rec = self.received[master.k]
-        z = np.where(rec, master.bus[self.meas_slots], np.nan)
+        z = np.where(rec, master.bus[self.meas_slots] + self.additive[master.k], np.nan)
         return z, rec
 
     def __call__(self, master) -> None:

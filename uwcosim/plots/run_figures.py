@@ -2,6 +2,7 @@
 
 - ``trajectory.png``: truth and estimates over the bathymetry map;
 - ``position_error.png``: position error of each estimator against time with its 3-sigma bound;
+- ``position_error_norm.png``: the error norm per step (seed 001 eq. 43, "RMSE(k)");
 - ``report.md``: the result table and the figures, with the command that reproduces them.
 """
 
@@ -78,6 +79,26 @@ def error_figure(cols, truth_names, est_names, states, path: Path) -> Path:
     return path
 
 
+def error_norm_figure(cols, truth_names, est_names, states, path: Path) -> Path:
+    """RMSE(k) of seed 001 eq. (43): the position error norm at each step, per estimator."""
+    t = cols["time"]
+    ix, iy = position_velocity_indices(states)[0]
+    tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
+    fig, ax = plt.subplots(figsize=(8, 3.6), dpi=110)
+    for name in est_names:
+        e = np.hypot(cols[f"est.{name}.{states[ix]}"] - tx, cols[f"est.{name}.{states[iy]}"] - ty)
+        ax.plot(t, e, lw=0.8, label=name)
+    ax.set_yscale("log")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("position error (m)")
+    ax.set_title("RMSE(k): position error norm per step")
+    ax.legend(fontsize=8, ncol=min(4, len(est_names)))
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
 def results_table(summary: dict) -> str:
     head = ("| estimator | pos. RMSE (m) | x RMSE (m) | y RMSE (m) | vel. RMSE (m/s) | ANEES "
             "| time/step (ms) | diverged |\n|---|---|---|---|---|---|---|---|\n")
@@ -97,6 +118,7 @@ def write_report(result, bathy, model, truth: list[str], names: list[str]) -> Pa
     states = list(model.state_names)
     trajectory_figure(cols, truth, names, states, bathy, out / "trajectory.png")
     error_figure(cols, truth, names, states, out / "position_error.png")
+    error_norm_figure(cols, truth, names, states, out / "position_error_norm.png")
     s = result.summary
     text = (
         f"# Run report: {s['scenario']}\n\n"
@@ -106,7 +128,8 @@ def write_report(result, bathy, model, truth: list[str], names: list[str]) -> Pa
         f"{results_table(s)}\n"
         f"Master overhead per step: {1e6 * s['timing']['master_overhead_per_step_s']:.1f} µs; "
         f"FMUs per step: {1e6 * s['timing']['fmus_per_step_s']:.1f} µs.\n\n"
-        "![trajectory](trajectory.png)\n\n![position error](position_error.png)\n"
+        "![trajectory](trajectory.png)\n\n![position error](position_error.png)\n\n"
+        "![position error norm](position_error_norm.png)\n"
     )
     path = out / "report.md"
     path.write_text(text)

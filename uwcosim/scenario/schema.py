@@ -38,6 +38,13 @@ class FMUSpec(Strict):
     rtol: PositiveFloat = 1e-8
     parameters: dict[str, Scalar] = {}
     start: dict[str, float] = {}
+    #: roles -> FMU variables with unit conversion (a TOML file name or an inline table;
+    #: see :mod:`uwcosim.master.varmap`); start values may then use the role names
+    map: str | dict[str, str | dict[str, Scalar]] | None = None
+    #: role table the map is checked against (default: the FMU's name if it is a role)
+    role: Literal["vehicle"] | None = None
+    #: per-call time limit (s): the FMU then runs in a worker process, killed on timeout
+    timeout_s: PositiveFloat | None = None
 
 
 class ControlSpec(Strict):
@@ -97,9 +104,14 @@ class SensorSpec(Strict):
 
     @model_validator(mode="after")
     def _same_length(self) -> SensorSpec:
-        if len(self.noise_inputs) != len(self.sigma):
+        if self.noise_inputs and len(self.noise_inputs) != len(self.sigma):
             raise ValueError(
                 f"'sigma' has {len(self.sigma)} values for {len(self.noise_inputs)} noise_inputs"
+            )
+        if not self.noise_inputs and self.sigma and len(self.sigma) != len(self.outputs):
+            raise ValueError(
+                f"'sigma' without noise_inputs is additive noise on the outputs: it needs "
+                f"{len(self.outputs)} values, got {len(self.sigma)}"
             )
         return self
 

@@ -179,3 +179,28 @@ def test_ekf_diagnostics_and_masks(model):
     assert est.diagnostics["pd_repairs"] == 0.0
     est.update(None)  # a new step without predict: fresh diagnostics, no NIS
     assert est.diagnostics == {"pd_repairs": 0.0}
+
+
+def test_fast_terrain_point_gradient_and_fallback(terrain, monkeypatch):
+    from uwcosim.models import fast_tan
+
+    ft = fast_tan.FastTerrain(terrain)
+    rng = np.random.default_rng(5)
+    xs, ys = rng.uniform(0, 25000, 20), rng.uniform(0, 25000, 20)
+    h, gx, gy = terrain.gradient(xs, ys)
+    for i in range(20):
+        np.testing.assert_allclose(ft.point(xs[i], ys[i]), (h[i], gx[i], gy[i]), rtol=1e-12,
+                                   atol=1e-12)
+    # outside: clamped depth, flat (zero derivative) across the edge
+    d, ddx, ddy = ft.point(-500.0, 1234.0)
+    assert d == pytest.approx(float(terrain.depth(0.0, 1234.0)), rel=1e-12)
+    assert ddx == 0.0 and ddy == pytest.approx(float(terrain.gradient(0.0, 1234.0)[2]))
+    np.testing.assert_allclose(ft.gradient(np.array([-500.0]), np.array([1234.0]))[1], 0.0)
+    # maps too large for the table use Bathymetry.depth
+    monkeypatch.setattr(fast_tan, "TABLE_MAX_BYTES", 0)
+    small = synthetic_bathymetry(3, extent=(0.0, 2000.0, 0.0, 2000.0))
+    slow = fast_tan.FastTerrain(small)
+    assert slow._table is None
+    np.testing.assert_allclose(slow.depth(xs / 20, ys / 20), small.depth(xs / 20, ys / 20))
+    np.testing.assert_allclose(slow.point(100.0, 200.0), [a[0] for a in small.gradient(
+        np.array([100.0]), np.array([200.0]))])

@@ -12,6 +12,8 @@ LAPACK itself about 1 us.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.linalg import lapack
 
@@ -38,7 +40,8 @@ def cholesky(P: np.ndarray) -> np.ndarray | None:
 def check_finite(what: str, *arrays: np.ndarray) -> None:
     """Raise :class:`FilterDivergence` if any array holds NaN or inf."""
     for a in arrays:
-        if not np.isfinite(np.sum(a)) and not np.isfinite(a).all():  # sum: one cheap pass
+        # the sum is one cheap pass and non-finite whenever an element is NaN or inf
+        if not math.isfinite(float(a.sum())) and not np.isfinite(a).all():
             raise FilterDivergence(f"{what} contains NaN or inf")
 
 
@@ -82,7 +85,6 @@ def factor(P: np.ndarray, counter: dict[str, float] | None = None):
 
 def cho_solve(cho, B: np.ndarray) -> np.ndarray:
     """``A^-1 B`` from ``cho = (L, True)``, the lower Cholesky factor of ``A``."""
-    B = np.asarray(B, dtype=float)
     vec = B.ndim == 1
     X, info = _potrs(cho[0], B[:, None] if vec else B, lower=1)
     if info != 0:  # pragma: no cover - only for malformed input
@@ -116,7 +118,7 @@ def joseph_update(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) ->
 def chol_solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """``A^-1 B`` for symmetric PD ``A`` by Cholesky (repairing ``A`` if needed)."""
     _, L = repair_pd(A)
-    return cho_solve((L, True), B)
+    return cho_solve((L, True), np.asarray(B, dtype=float))
 
 
 def psd_factor(Q: np.ndarray) -> np.ndarray:

@@ -123,7 +123,7 @@ class ParticleFilter(FilterBase):
         if seed is not None:
             rng = np.random.default_rng(seed)
         self.rng = rng if rng is not None else np.random.default_rng()
-        _, L = repair_pd(self.P)
+        L = psd_factor(self.P)  # P0 may be singular (a state known exactly)
         # particles, state-major: row j holds state j of every particle
         self.particles = self.x[:, None] + L @ self.rng.standard_normal((model.nx, self.n))
         self.logw = np.full(self.n, -math.log(self.n))

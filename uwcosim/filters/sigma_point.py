@@ -42,10 +42,13 @@ class SigmaRule:
 
     def points(self, x: np.ndarray, L: np.ndarray) -> np.ndarray:
         """The point set as rows, ``(2n + center, n)``."""
+        n, c = self.n, int(self.center)
+        X = np.empty((2 * n + c, n))
+        X[:] = x
         sL = self.scale * L.T  # rows are the scaled columns of L
-        parts = [x[None, :]] if self.center else []
-        parts += [x + sL, x - sL]
-        return np.concatenate(parts, axis=0)
+        X[c : c + n] += sL
+        X[c + n :] -= sL
+        return X
 
     def moments(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Weighted mean, covariance and deviations ``Y - mean`` of transformed points."""

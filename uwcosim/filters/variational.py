@@ -44,13 +44,7 @@ import numpy as np
 
 from uwcosim.filters.base import register
 from uwcosim.filters.kalman import FilterBase
-from uwcosim.filters.numerics import (
-    joseph_update,
-    kalman_gain,
-    linearize,
-    nis,
-    symmetrize,
-)
+from uwcosim.filters.numerics import kalman_gain, linearize, nis, symmetrize
 from uwcosim.filters.policies import Extrapolate
 
 
@@ -96,26 +90,32 @@ def vb_update(
     n, m = x.size, y.size
     t_pred, T_pred = n + tau + 1.0, tau * P  # t = n + tau + 1, T = tau P
     u_pred, U_pred = float(u), U
+    Ht = H.T
+    eye = np.eye(n)
     xi, Pi = x, P
     done = 0
+    tol2 = tol * tol
     while done < int(iterations):
         done += 1
         dx = xi - x
-        A = Pi + np.outer(dx, dx)  # A = P(i) + dx dx'
+        A = Pi + dx[:, None] * dx  # A = P(i) + dx dx'
         t, T = t_pred + 1.0, A + T_pred  # t = t + 1, T = A + T
         e = y - H @ dx  # e = z - h(x) - H (x(i) - x)
-        B = np.outer(e, e) + H @ Pi @ H.T  # B = e e' + H P(i) H'
+        B = e[:, None] * e + H @ Pi @ Ht  # B = e e' + H P(i) H'
         uu, UU = u_pred + 1.0, B + U_pred  # u = u + 1, U = B + U
-        P_hat = symmetrize(T / (t - n - 1.0))  # E[P_{k|k-1}] = T / (t - n - 1)
-        R_hat = symmetrize(UU / (uu - m - 1.0))  # E[R] = U / (u - m - 1)
-        PHt = P_hat @ H.T
+        P_hat = T / (t - n - 1.0)  # E[P_{k|k-1}] = T / (t - n - 1)
+        R_hat = UU / (uu - m - 1.0)  # E[R] = U / (u - m - 1)
+        PHt = P_hat @ Ht
         S = H @ PHt + R_hat  # S = H P^ H' + R^
         K, cho = kalman_gain(PHt, S, counter)  # K = P^ H' S^-1
         x_new = x + K @ y  # x = x + K (z - h(x))
-        P_new = joseph_update(P_hat, K, H, R_hat)  # P = (I-KH) P^ (I-KH)' + K R^ K'
-        step = np.max(np.abs(x_new - xi) / np.sqrt(np.maximum(np.diag(P_new), 1e-300)))
+        IKH = eye - K @ H
+        P_new = IKH @ P_hat @ IKH.T + K @ R_hat @ K.T  # P = (I-KH) P^ (I-KH)' + K R^ K'
+        P_new = 0.5 * (P_new + P_new.T)
+        step = x_new - xi
+        step *= step
         xi, Pi = x_new, P_new
-        if step < tol:
+        if (step / np.maximum(P_new.diagonal(), 1e-300)).max() < tol2:
             break
     return VBResult(xi, Pi, t, T, uu, UU, P_hat, R_hat, K, S, A, B, y, done, cho)
 
@@ -147,7 +147,7 @@ class VariationalBayesAKF(FilterBase):
         self.tau, self.rho, self.tol = float(tau), float(rho), float(tol)
         self.iterations = int(iterations)
         self.u = u0
-        self.U = (u0 - m - 1.0) * np.array(model.R, dtype=float)  # E[R_0] = R~_0 (eq. 17)
+        self.U = (u0 - m - 1.0) * np.array(model.R, dtype=float)  # E[R_0] = R~_0 (Huang eq. 16)
         self.last: VBResult | None = None
 
     @property

@@ -29,6 +29,7 @@ import weakref
 import numpy as np
 
 from uwcosim.models.bathymetry import PAD, Bathymetry
+from uwcosim.models.statespace import CasadiModel
 from uwcosim.models.vehicle import STATE_NAMES
 
 TABLE_MAX_BYTES = 512 * 2**20
@@ -115,6 +116,28 @@ class FastTerrain:
         h = self.depth_xy(np.array([np.atleast_1d(x), np.atleast_1d(y)], dtype=float))
         return h if np.ndim(x) else h[0]
 
+    def point(self, x: float, y: float) -> tuple[float, float, float]:
+        """``(h_d, dh_d/dx, dh_d/dy)`` at one point, in plain floats (no array overhead)."""
+        if self._table is None:
+            h, gx, gy = self.bathy.gradient(np.array([x]), np.array([y]))
+            return float(h[0]), float(gx[0]), float(gy[0])
+        nx, ny = self._nx, self._ny
+        u = (float(x) - self.bathy.x0) * self._idx
+        v = (float(y) - self.bathy.y0) * self._idy
+        flat_u, flat_v = not 0.0 <= u <= nx - 1.0, not 0.0 <= v <= ny - 1.0
+        u = min(max(u, 0.0), nx - 1.0)
+        v = min(max(v, 0.0), ny - 1.0)
+        iu, iv = min(int(u), nx - 2), min(int(v), ny - 2)
+        u -= iu
+        v -= iv
+        c = self._table[:, iv * (nx - 1) + iu].tolist()  # c[4 i + j]: u^i v^j
+        q = [((c[12 + j] * u + c[8 + j]) * u + c[4 + j]) * u + c[j] for j in range(4)]
+        dq = [(3.0 * c[12 + j] * u + 2.0 * c[8 + j]) * u + c[4 + j] for j in range(4)]
+        h = ((q[3] * v + q[2]) * v + q[1]) * v + q[0]
+        hu = 0.0 if flat_u else (((dq[3] * v + dq[2]) * v + dq[1]) * v + dq[0]) * self._idx
+        hv = 0.0 if flat_v else ((3.0 * q[3] * v + 2.0 * q[2]) * v + q[1]) * self._idy
+        return h, hu, hv
+
     def gradient(self, x, y) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(h_d, dh_d/dx, dh_d/dy)`` at the points.
 
@@ -197,14 +220,13 @@ class FastTANModel:
         x = np.asarray(x, dtype=float)
         if self._fast_terrain is None:
             return x[2:4].copy()
-        return np.array([x[2], x[3], float(self._fast_terrain.depth(x[0], x[1]))])
+        return np.array([x[2], x[3], self._fast_terrain.point(x[0], x[1])[0]])
 
     def H(self, x) -> np.ndarray:
         H = np.zeros((self.nz, 4))
         H[0, 2] = H[1, 3] = 1.0
         if self._fast_terrain is not None:
-            _, gx, gy = self._fast_terrain.gradient(x[0], x[1])
-            H[2, 0], H[2, 1] = gx, gy
+            _, H[2, 0], H[2, 1] = self._fast_terrain.point(x[0], x[1])
         return H
 
     def h_batch(self, X: np.ndarray) -> np.ndarray:
@@ -220,8 +242,8 @@ _FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 def _looks_like_tan(model) -> bool:
     return (
-        hasattr(model, "terrain")
-        and hasattr(model, "_f")
+        isinstance(model, CasadiModel)
+        and hasattr(model, "terrain")
         and tuple(getattr(model, "state_names", ())) == STATE_NAMES
         and getattr(model, "nu", None) == 2
         and getattr(model, "nw", None) == 4

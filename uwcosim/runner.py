@@ -139,7 +139,7 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
     log_path = out_dir / "log.parquet"
     logger = None
     failure: UwcosimError | None = None
-    bank = model = None
+    bank = model = snapshots = None
     try:
         master.initialize(overrides)
         if spec.estimators:
@@ -157,6 +157,13 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
         hook = _LogHook(master, bank, logger, np.array(slots, dtype=np.intp), model)
         hook(master)
         master.hooks.append(hook)
+        if bank is not None and spec.output.density_snapshots:
+            from uwcosim.evaluation.metrics import position_velocity_indices
+            from uwcosim.plots.density_figures import DensitySnapshots
+
+            pos = position_velocity_indices(model.state_names)[0]
+            snapshots = DensitySnapshots(bank, list(spec.output.density_snapshots), tuple(pos))
+            master.hooks.append(snapshots)
         if progress is not None:
             master.hooks.append(progress)
         master.run_until(master.t0 + master.n_steps * master.h)
@@ -180,6 +187,7 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
     if (spec.output.figures if figures is None else figures) and bank:
         from uwcosim.plots.run_figures import write_report
 
+        extra = snapshots.draw(out_dir, list(model.state_names)) if snapshots else []
         write_report(result, bathy, model, list(spec.model.truth),
-                     [tr.name for tr in bank.tracks])
+                     [tr.name for tr in bank.tracks], extra)
     return result

@@ -3,6 +3,8 @@
 from uwcosim.filters import (  # noqa: F401  (importing registers the estimators)
     kalman,
     particle,
+    point_mass,
+    projection,
     sigma_point,
     variational,
 )

@@ -30,7 +30,8 @@ from scipy import ndimage
 from uwcosim.errors import FilterDivergence
 from uwcosim.filters.base import Estimator, register, select
 from uwcosim.filters.numerics import symmetrize
-from uwcosim.filters.projection_model import ConditionalKalman, GridLikelihood, Partition
+from uwcosim.filters.projection_likelihood import GridLikelihood
+from uwcosim.filters.projection_model import ConditionalKalman, Partition
 
 
 def hellinger(p: np.ndarray, q: np.ndarray) -> float:
@@ -53,7 +54,8 @@ def gaussian_convolve(values: np.ndarray, spacing, D: np.ndarray) -> np.ndarray:
     X = sfft.rfftn(values, s=shape)
     oms = []
     for d in range(n):
-        f = sfft.rfftfreq(shape[d], spacing[d]) if d == n - 1 else sfft.fftfreq(shape[d], spacing[d])
+        freq = sfft.rfftfreq if d == n - 1 else sfft.fftfreq
+        f = freq(shape[d], spacing[d])
         o = 2.0 * np.pi * f
         s = [1] * n
         s[d] = o.size
@@ -79,6 +81,7 @@ def _moments(axes, w):
             m2 = w.sum(axis=tuple(i for i in range(n) if i not in (r, s)))
             cov[r, s] = cov[s, r] = (axes[r] - mean[r]) @ m2 @ (axes[s] - mean[s])
     return mean, cov
+
 
 
 @register("point_mass")
@@ -216,7 +219,7 @@ class PointMassFilter(Estimator):
                 norm[c:c + 512] = Kc.sum(axis=0)
                 blocks.append(Kc)
             src = np.where(norm > 0, w / np.where(norm > 0, norm, 1.0), 0.0)
-            for b, c in zip(blocks, range(0, fx.shape[0], 512)):
+            for b, c in zip(blocks, range(0, fx.shape[0], 512), strict=True):
                 out += b @ src[c:c + 512]
         self.axes = new
         self.values = out.reshape([a.size for a in new]) / self.cell

@@ -6,44 +6,59 @@ The density of the gridded states ``p`` (all states of a low-dimensional model; 
 states ``k`` (the DVL-measured velocities of the TAN model) are handled by a conditional Kalman
 filter (:mod:`uwcosim.filters.projection_model`). One step:
 
-1. *Re-centring* (eq. 33, before the prediction): the box is centred on the predicted mean with
-   half-width ``k_sigma`` times the predicted standard deviation, and the coefficients are
-   re-projected exactly from the old box onto the new one (the old series is taken as zero
-   outside its box).
+1. *Re-centring* (eq. 33): the box is centred on the predicted mean with half-width ``k_sigma``
+   predicted standard deviations; the coefficients are re-projected exactly from the old box
+   (the old series taken as zero outside it) by per-axis transfer matrices.
 2. *Prediction* (eqs. 15, 23, 41-43): ``m- = exp(A dt) m`` with ``A`` the Galerkin matrix of the
    Fokker-Planck operator ``L* p = 1/2 sum d2(B p)/dx_r dx_s - sum d(f p)/dx_r``, built from the
-   CasADi drift, its divergence and the diffusion ``B = g Q g'`` on the quadrature grid
-   (Toeplitz in ``q - i``, one FFT per field), applied with :func:`scipy.sparse.linalg.expm_multiply`.
-   When neither ``f_p`` nor ``B`` depends on ``x_p`` (the TAN position block: the drift is the
-   rotated velocity), ``A`` is diagonal: the density is translated by the increment and multiplied
-   by ``exp(-w' D w / 2)``; the translation is applied by moving the box (exact, no wrap-around).
-   The increment covariance ``D`` includes the velocity uncertainty, see
-   :class:`~uwcosim.filters.projection_model.ConditionalKalman`.
-3. *Bayes update* (eqs. 45-48): ``m = F m- / (E' m-)`` computed as the FFT quadrature of the
+   CasADi drift, its divergence and the diffusion ``B = g Q g'`` (and its derivatives) on the
+   quadrature grid (Toeplitz in ``q - i``, one FFT per field); ``exp(A dt)`` by ``expm``
+   (``expm_multiply`` above 1200 basis functions). The drift is tapered to zero on the outer 10 %
+   of each side of the box (where the density is negligible): on the periodic box a drift that
+   does not vanish jumps at the seam and gives ``A`` spurious growing modes.
+   When neither ``f_p`` nor ``B`` depends on ``x_p`` (the TAN position block: its drift is the
+   rotated velocity), ``A`` is diagonal: a phase shift (applied by translating the box, which is
+   exact and cannot wrap around) and the decay ``exp(-w' D w / 2)``. ``D`` includes the velocity
+   uncertainty (:class:`~uwcosim.filters.projection_model.ConditionalKalman`).
+3. *Bayes update* (eqs. 45-48): ``m = F m- / (E' m-)``, computed as the FFT quadrature of the
    product of likelihood and prior on the grid (``F m-`` is exactly that projection, so ``F`` is
-   never formed), then normalized (``integral of p = sqrt(L) m_0``).
-4. *Positivity*: truncation leaves negative lobes. Their mass (``integral of max(-p, 0)``) is
-   reported as ``neg_mass`` (posterior) and ``neg_mass_prior``; with ``positivity="clip"``
-   (default) the grid values are clipped at zero, renormalized and re-projected. An optional
-   exponential spectral filter of order ``spectral_filter`` damps the Gibbs ripples.
-5. *Moments* (eqs. 50-51): the mean and covariance are exact integrals of the series.
+   never formed). When the posterior box (eq. 33 with the posterior moments) is narrower than
+   ``refine`` times the prior box, the product is redone on the posterior box's finer grid.
+4. *Moments* (eqs. 50-51): quadratures on the grid of the posterior product before truncation
+   (eq. 50 with ``Psi = sqrt(L)/K IFFT(x_n)`` is that quadrature), variances floored at the grid
+   resolution.
+5. *Negative lobes*: the mass ``integral of max(-p, 0)`` of the truncated posterior is reported
+   as ``neg_mass`` (and ``neg_mass_prior``). ``positivity="auto"`` (default) keeps the signed
+   series as the paper does (the lobes carry the truncation error with nearly zero net mass and
+   cancel in the moments) while ``neg_mass <= neg_limit``; above it the grid values are
+   thresholded (``max(p - a, 0)``, ``a`` the deepest lobe), renormalized and re-projected
+   (``positivity_applied`` = 1). ``"clip"`` (clip and renormalize) is available but unstable on
+   rough terrain: the positive halves of the ripples stay, spread over the box, inflate the
+   variance, hence the next box, hence the ripples. ``"threshold"`` always thresholds (stable,
+   but it trims tails every step: overconfident); ``"jackson"`` damps the coefficients with the
+   positive Jackson kernel (nonnegative by construction, but the blur of one resolution cell per
+   step outgrows the information at ``K = 10``); ``"none"`` never corrects.
+6. *Representation error*: a likelihood rougher than the basis can resolve is not sampled as if
+   exact: the measurement variance is inflated by the variation of ``h`` within a resolution
+   cell ``L / (2K + 1)`` (``resolution_inflation``, 1 = on; vanishes as the box shrinks).
 
-Deviations from the paper (see docs/projection_filter.md):
+Deviations from the paper (docs/projection_filter.md):
 
 - frequencies ``q = -K..K`` (``2K+1`` functions per dimension) instead of ``q = 0..N-1``: the
-  positive set cannot represent a real density nor the coupling that an ``x``-dependent drift
-  creates between ``q`` and ``q -+ k``;
-- the interval of eq. 33 is garbled in the extraction (``-E - 10C``); implemented as
-  ``[E - k_sigma sigma, E + k_sigma sigma]`` per dimension with the predicted ``E`` and ``sigma``
-  (the paper uses the posterior ones; the predicted box keeps the diffused density inside);
-- re-projection and moments use exact integrals; the inner products of eqs. 41, 45, 46 use the
-  FFT quadrature on ``M >= grid_factor (2K+1)`` points (the paper uses the ``K`` interval points).
+  positive set cannot represent a real density nor the coupling ``q <-> q -+ k`` that an
+  ``x``-dependent drift creates;
+- eq. 33 is garbled in the extraction (``-E - 10C``): implemented as
+  ``[E - k_sigma sigma, E + k_sigma sigma]`` per dimension with the predicted ``E``, ``sigma``;
+  default ``k_sigma = 4`` instead of 10: with ``K = 10`` a box of 20 sigma resolves a Gaussian
+  only to 1e-2 and the filter loses the track on rough terrain (see the docs for the numbers);
+- re-projection uses exact integrals, inner products the FFT quadrature on ``M`` points
+  (``grid_factor (2K+1)``) instead of ``K`` interval points.
 
-Settings: ``K`` (highest harmonic per dimension, default 10), ``k_sigma`` (10, as the paper),
-``states`` (gridded states; default from the model structure), ``measurements``,
-``grid_factor`` (3), ``positivity`` (``"clip"`` or ``"none"``), ``spectral_filter`` (0 = off, else
-the even filter order), ``long_run`` (long-run velocity-error covariance, True),
-``min_halfwidth`` (lower bound of the half-width, state units).
+Settings: ``K`` (highest harmonic per dimension, 10), ``k_sigma`` (4), ``states`` (gridded
+states; default from the model structure), ``measurements``, ``grid_factor`` (3),
+``positivity`` (``"auto"``), ``neg_limit`` (0.1), ``spectral_filter`` (0 = off, else the even
+order of an exponential filter), ``long_run`` (True), ``min_halfwidth`` (0),
+``resolution_inflation`` (1), ``refine`` (0.7; 1 = off).
 """
 
 from __future__ import annotations
@@ -56,10 +71,12 @@ from uwcosim.errors import FilterDivergence
 from uwcosim.filters import projection_ops as po
 from uwcosim.filters.base import Estimator, register, select
 from uwcosim.filters.numerics import symmetrize
-from uwcosim.filters.projection_model import ConditionalKalman, GridLikelihood, Partition
+from uwcosim.filters.projection_likelihood import GridLikelihood
+from uwcosim.filters.projection_model import ConditionalKalman, Partition
 
-
+POSITIVITY = ("auto", "none", "threshold", "clip", "product", "jackson")
 DENSE_EXPM_MAX = 1200  # basis size up to which exp(A dt) is formed densely
+
 
 
 @register("pfm_psi")
@@ -72,36 +89,39 @@ class ProjectionFilter(Estimator):
         x0,
         P0,
         K: int = 10,
-        k_sigma: float = 10.0,
+        k_sigma: float = 4.0,
         states: list | None = None,
         measurements: list[str] | None = None,
         grid_factor: float = 3.0,
-        positivity: str = "threshold",
+        positivity: str = "auto",
         spectral_filter: float = 0.0,
         long_run: bool = True,
         min_halfwidth: float = 0.0,
         resolution_inflation: float = 1.0,
         refine: float = 0.7,
+        neg_limit: float = 0.1,
     ) -> None:
         super().__init__(model, x0, P0)
         if int(K) != K or K < 1:
             raise ValueError(f"K must be a positive integer, got {K}")
         if not k_sigma > 0 or not grid_factor >= 2:
             raise ValueError("k_sigma must be > 0 and grid_factor >= 2")
-        if positivity not in ("threshold", "clip", "none"):
-            raise ValueError(
-                f"positivity must be 'threshold', 'clip' or 'none', got {positivity!r}"
-            )
+        if positivity not in POSITIVITY:
+            raise ValueError(f"positivity must be one of {POSITIVITY}, got {positivity!r}")
         self.K = int(K)
         self.k_sigma = float(k_sigma)
         self.positivity = positivity
         self.min_halfwidth = float(min_halfwidth)
         self.resolution_inflation = float(resolution_inflation)
         self.refine = float(refine)
+        self.neg_limit = float(neg_limit)
         self.part = Partition(model, states, measurements)
         self.kalman = ConditionalKalman(model, self.part, self.x, self.P, long_run)
         self.likelihood = GridLikelihood(model, self.part)
         p = self.part.p
+        self._pp = np.ix_(p, p)
+        self._kk = np.ix_(self.part.k, self.part.k)
+        self._keys = [(f"interval_lo_{n}", f"interval_hi_{n}") for n in self.part.names]
         M = po.fft_size(grid_factor * (2 * self.K + 1))
         if not self.part.drift_constant:
             M = max(M, po.fft_size(4 * self.K + 2))
@@ -132,10 +152,10 @@ class ProjectionFilter(Estimator):
         x = self.x.copy()
         P = np.zeros_like(self.P)
         x[p] = self._mean
-        P[np.ix_(p, p)] = self._cov
+        P[self._pp] = self._cov
         if k:
             x[k] = self.kalman.mean
-            P[np.ix_(k, k)] = self.kalman.cov
+            P[self._kk] = self.kalman.cov
         if not (np.isfinite(x).all() and np.isfinite(P).all()):
             self.diverged = True
             raise FilterDivergence(f"{self.kind}: non-finite estimate")
@@ -208,38 +228,53 @@ class ProjectionFilter(Estimator):
         rows_k = [r for r in rows if r in part.rows_kalman]
         rows_g = [r for r in rows if r in part.rows_grid]
         self.kalman.update(self.x, z, rows_k, self.diagnostics)
-        prior = self.m
+        prior, prior_basis = self.m, self.basis
         post, mean, cov = self._bayes(self.basis, z, rows_g, record=True)
-        if rows_g and self.refine < 1.0:
+        if rows_g and self.refine < 1.0 and post.sum() > 0:
             # re-centre on the posterior (eq. 33 with the posterior moments) and, when the
             # posterior box is much narrower, redo the product on its finer grid
             lo, length = self._box(mean, cov)
             if np.any(length < self.refine * self.basis.length):
-                length = np.minimum(length, self.basis.length)
-                new = self.basis.moved(lo, length)
-                self.m = po.reproject(prior, self.basis, new)
-                self.basis = new
-                post, mean, cov = self._bayes(new, z, rows_g, record=False)
-                self.diagnostics["refined"] = 1.0
+                new = self.basis.moved(lo, np.minimum(length, self.basis.length))
+                self.m = po.reproject(prior, prior_basis, new)
+                post2, mean2, cov2 = self._bayes(new, z, rows_g, record=False)
+                if post2.sum() > 0 and np.all(np.isfinite(cov2)):
+                    self.basis, post, mean, cov = new, post2, mean2, cov2
+                    self.diagnostics["refined"] = 1.0
+                else:
+                    self.m = prior
         cell = self.basis.cell()
-        self.m = po.from_grid(post / (post.sum() * cell), self.basis)  # eqs. 45, 47
+        total = float(post.sum() * cell)
+        if not (np.isfinite(total) and total > 0 and np.all(np.isfinite(mean))):
+            # nothing usable left on the grid: keep the prior
+            self.m, self.basis = prior, prior_basis
+            self.diagnostics["update_skipped"] = 1.0
+            self._normalize()
+            self._moments()
+            self._set_estimate()
+            self._report()
+            return
+        self.m = po.from_grid(post / total, self.basis)  # eqs. 45, 47
+        if self.positivity == "jackson":
+            self.m = self.m * po.jackson_factors(self.basis)
         if self._filter is not None:
             self.m = self.m * self._filter
         values = po.to_grid(self.m, self.basis)
         neg = float(-np.minimum(values, 0.0).sum() * cell)
         self.diagnostics["neg_mass"] = neg
-        if self.positivity != "none" and neg > 0:
-            values = self._positive(values)
+        mode = self.positivity
+        if mode == "auto":
+            mode = "threshold" if neg > self.neg_limit else "none"
+            self.diagnostics["positivity_applied"] = float(mode == "threshold")
+        if mode in ("threshold", "clip") and neg > 0:
+            values = self._positive(values, mode)
             self.m = po.from_grid(values / (values.sum() * cell), self.basis)
         self._normalize()
-        if np.all(np.isfinite(cov)) and np.all(np.diag(cov) > 0):
-            self._mean, self._cov = mean, symmetrize(cov)
-        else:
-            self._moments()
+        self._mean, self._cov = mean, cov
         self._set_estimate()
         self._report()
 
-    def _positive(self, values: np.ndarray) -> np.ndarray:
+    def _positive(self, values: np.ndarray, mode: str | None = None) -> np.ndarray:
         """Remove the truncation's negative lobes from grid values.
 
         ``"clip"``: ``max(p, 0)``. ``"threshold"``: ``max(p - a, 0)`` with ``a`` the depth of the
@@ -247,7 +282,7 @@ class ProjectionFilter(Estimator):
         added by clipping is not spread over the whole box (which inflates the variance, hence
         the next box, hence the ripples: an instability seen on rough terrain).
         """
-        if self.positivity == "threshold":
+        if (mode or self.positivity) == "threshold":
             a = -float(values.min())
             return np.maximum(values - a, 0.0) if a > 0 else values
         return np.maximum(values, 0.0)
@@ -258,7 +293,7 @@ class ProjectionFilter(Estimator):
         values = po.to_grid(self.m, basis)
         if record:
             self.diagnostics["neg_mass_prior"] = float(-np.minimum(values, 0.0).sum() * cell)
-        if self.positivity != "none":
+        if self.positivity in ("threshold", "clip", "product"):
             values = self._positive(values)
         post = values
         if rows_g:
@@ -275,15 +310,38 @@ class ProjectionFilter(Estimator):
             else:
                 self.diagnostics["update_skipped"] = 1.0
                 post = values
-        mean, cov = po.grid_moments(post, basis)
+        if not post.sum() > 0:  # a signed prior can lose its mass: fall back to its clip
+            post = np.maximum(post, 0.0)
+        mean, cov = self._grid_moments(post, basis)
         return post, mean, cov
+
+    @staticmethod
+    def _grid_moments(post: np.ndarray, basis):
+        """Moments of the (possibly signed) grid posterior; of its clip if they are not valid.
+
+        Variances are floored at the grid resolution ``(L / M)^2 / 12``.
+        """
+        floor = (basis.length / basis.M) ** 2 / 12.0
+        mean, cov = po.grid_moments(post, basis)
+        ok = np.all(np.isfinite(cov)) and np.all(np.diag(cov) > floor)
+        if ok:
+            try:
+                np.linalg.cholesky(cov)
+            except np.linalg.LinAlgError:
+                ok = False
+        if not ok:
+            mean, cov = po.grid_moments(np.maximum(post, 0.0), basis)
+        cov = symmetrize(cov)
+        d = np.sqrt(np.maximum(np.diag(cov), floor) / np.maximum(np.diag(cov), 1e-300))
+        return mean, cov * np.outer(d, d)
 
     def _report(self) -> None:
         d = self.diagnostics
         d["n_basis"] = float(self.basis.size)
-        for i, name in enumerate(self.part.names):
-            d[f"interval_lo_{name}"] = float(self.basis.lo[i])
-            d[f"interval_hi_{name}"] = float(self.basis.hi[i])
+        lo, hi = self.basis.lo, self.basis.hi
+        for i, (klo, khi) in enumerate(self._keys):
+            d[klo] = float(lo[i])
+            d[khi] = float(hi[i])
 
     # ------------------------------------------------------------------------------------------
     @property
@@ -298,7 +356,8 @@ class ProjectionFilter(Estimator):
         zero outside the box; negative lobes clipped unless ``clip=False``.
         """
         if axes is None:
-            axes = [np.linspace(a, b, n) for a, b in zip(self.basis.lo, self.basis.hi)]
+            lo, hi = self.basis.lo, self.basis.hi
+            axes = [np.linspace(lo[d], hi[d], n) for d in range(lo.size)]
         axes = [np.asarray(a, dtype=float) for a in axes]
         values = po.evaluate(self.m, self.basis, axes)
         return axes, (np.maximum(values, 0.0) if clip else values)

@@ -18,8 +18,8 @@ This module
   the increment of ``p`` over a step with its covariance: the velocity uncertainty becomes extra
   diffusion of the position, inflated to the *long-run* covariance of the velocity error
   (see :meth:`ConditionalKalman.increment`);
-- evaluates the log-likelihood of the ``p`` rows on a tensor grid (:class:`GridLikelihood`),
-  with a separable evaluation of the bathymetry spline when the row is the terrain depth.
+- the log-likelihood of the ``p`` rows on a tensor grid is in
+  :mod:`uwcosim.filters.projection_likelihood`.
 
 The continuous drift is ``model.ode(x, u, 0)`` when the model exposes its ODE as ``ode``;
 otherwise it is the mean rate of the model's own one-step map, ``(f(x, u, dt) - x) / dt``, and
@@ -57,10 +57,11 @@ class FastFunction:
             self._buf.set_res(i, memoryview(r))
 
     def __call__(self, *args) -> list[np.ndarray]:
-        for a, v in zip(self._in, args):
+        for a, v in zip(self._in, args, strict=False):
             a[:] = np.ravel(v)
         self._eval()
-        return [r.reshape(s, order="F").copy() for r, s in zip(self._out, self._shapes)]
+        pairs = zip(self._out, self._shapes, strict=True)
+        return [r.reshape(s, order="F").copy() for r, s in pairs]
 
 
 def _resolve_states(spec, names: tuple[str, ...]) -> list[int]:
@@ -95,7 +96,10 @@ class Partition:
     def __init__(self, model, states=None, measurements=None, max_dim: int = 3) -> None:
         for attr in ("_f", "_FG", "_h", "q_psd"):
             if not hasattr(model, attr):
-                raise ValueError("the projection and point-mass filters need a CasadiModel")
+                raise ValueError(
+                    "the projection and point-mass filters need the CasadiModel (its CasADi "
+                    "functions), not a numpy fast path"
+                )
         self.model = model
         nx, nu = model.nx, model.nu
         names = tuple(model.measurement_names)
@@ -132,7 +136,12 @@ class Partition:
         h_lin = [not _depends(Jh[r, :], xm) for r in range(model.nz)]
 
         if states is None:
-            k = {j for r in range(model.nz) if self.use[r] and h_lin[r] for j in np.flatnonzero(h_dep[r])}
+            rows = [r for r in range(model.nz) if self.use[r]]
+            k = {j for r in rows if h_lin[r] for j in np.flatnonzero(h_dep[r])}
+
+            def bad_row(r, k):
+                return not h_lin[r] or any(h_dep[r, i] and i not in k for i in range(nx))
+
             changed = True
             while changed:
                 changed = False
@@ -141,11 +150,7 @@ class Partition:
                         not f_lin[j]
                         or B_dep[j]
                         or any(f_dep[j, i] and i not in k for i in range(nx))
-                        or any(
-                            self.use[r] and h_dep[r, j]
-                            and (not h_lin[r] or any(h_dep[r, i] and i not in k for i in range(nx)))
-                            for r in range(model.nz)
-                        )
+                        or any(h_dep[r, j] and bad_row(r, k) for r in rows)
                     )
                     if bad:
                         k.discard(j)
@@ -167,7 +172,8 @@ class Partition:
         xs, us, dts = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("dt")
         Fd, Gd = model._FG(xs, us, dts)
         Qd = Gd @ ca.diag(ca.DM(model.q_psd) / dts) @ Gd.T
-        self.step = FastFunction(ca.Function("step", [xs, us, dts], [model._f(xs, us, dts), Fd, Qd]))
+        step = ca.Function("step", [xs, us, dts], [model._f(xs, us, dts), Fd, Qd])
+        self.step = FastFunction(step)
         # the Kalman rows are affine in x: h_rows(x) = H_rows x + c_rows
         x_ref = np.zeros(nx)
         if self.rows_kalman:
@@ -211,9 +217,8 @@ class Partition:
                     "Kalman states; grid the states it depends on"
                 )
             if on_k and not h_lin[r]:
-                raise ValueError(
-                    f"measurement {self.model.measurement_names[r]!r} is nonlinear in Kalman states"
-                )
+                name = self.model.measurement_names[r]
+                raise ValueError(f"measurement {name!r} is nonlinear in Kalman states")
 
     @property
     def names(self) -> list[str]:
@@ -330,9 +335,13 @@ class ConditionalKalman:
         self._F = np.eye(len(self.k))
         self._phi = None
         self.step = part.step
+        self._pp = np.ix_(self.p, self.p)
+        self._pk = np.ix_(self.p, self.k)
+        self._kk = np.ix_(self.k, self.k)
         if self.rows:
             self.H = part.H_kalman[:, self.k]
             self.c = part.c_kalman
+            self._R = model.R[np.ix_(self.rows, self.rows)]
 
     def long_run_cov(self) -> np.ndarray:
         P = self.cov
@@ -358,14 +367,14 @@ class ConditionalKalman:
         fx = fx.reshape(-1)
         p, k = self.p, self.k
         d = fx[p] - x_full[p]
-        D = Q[np.ix_(p, p)]
+        D = Q[self._pp]
         Dk = np.zeros_like(D)
         if k:
-            Fpk = F[np.ix_(p, k)]
+            Fpk = F[self._pk]
             Dk = symmetrize(Fpk @ self.long_run_cov() @ Fpk.T)
-            Fkk = F[np.ix_(k, k)]
+            Fkk = F[self._kk]
             self.mean = fx[k]
-            self.cov = symmetrize(Fkk @ self.cov @ Fkk.T + Q[np.ix_(k, k)])
+            self.cov = symmetrize(Fkk @ self.cov @ Fkk.T + Q[self._kk])
             self._F = Fkk
         return Increment(d, symmetrize(D + Dk), Dk, F)
 
@@ -373,10 +382,12 @@ class ConditionalKalman:
         """Kalman update of the ``k`` block with the measurement rows ``rows``."""
         if not rows or not self.k:
             return
-        sel = [self.rows.index(r) for r in rows]
-        H = self.H[sel]
-        R = self.model.R[np.ix_(rows, rows)]
-        y = z[rows] - (H @ self.mean + self.c[sel])  # rows affine in x_k, independent of x_p
+        if rows == self.rows:
+            H, R, c = self.H, self._R, self.c
+        else:
+            sel = [self.rows.index(r) for r in rows]
+            H, R, c = self.H[sel], self.model.R[np.ix_(rows, rows)], self.c[sel]
+        y = z[rows] - (H @ self.mean + c)  # rows affine in x_k, independent of x_p
         PHt = self.cov @ H.T
         S = symmetrize(H @ PHt + R)
         try:
@@ -390,134 +401,3 @@ class ConditionalKalman:
         self.cov = joseph_update(self.cov, K, H, R)
         self._phi = (np.eye(len(self.k)) - K @ H) @ self._F
         diagnostics["nis_dof"] = float(len(rows))
-
-
-class TerrainGrid:
-    """The bathymetry spline ``h_d`` on a tensor grid, separably: ``W_x C W_y'``.
-
-    Same cubic B-spline and edge clamping as :meth:`Bathymetry.depth`, at a cost linear in the
-    grid size instead of 16 gathers per point.
-    """
-
-    def __init__(self, terrain) -> None:
-        self.t = terrain
-        self.pad = (terrain.coefficients.shape[0] - terrain.shape[0]) // 2
-
-    @staticmethod
-    def _weights(s: np.ndarray, n: int):
-        """Cell index and the 4 cubic B-spline weights (rows) at fractional positions ``s``."""
-        s = np.minimum(np.maximum(s, 0.0), n - 1.0)
-        i = np.minimum(s.astype(np.intp), n - 2)
-        f = s - i
-        g = 1.0 - f
-        f3 = f * f * f
-        w = np.empty((4, s.size))
-        w[0] = g * g * g
-        w[1] = 4.0 - 6.0 * f * f + 3.0 * f3
-        w[3] = f3
-        w[2] = 6.0 - w[0] - w[1] - f3
-        w *= 1.0 / 6.0
-        return i, w
-
-    def depth(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-        """``h_d(xs[i], ys[j])``, shape ``(len(xs), len(ys))``."""
-        t = self.t
-        ny, nx = t.shape
-        iu, wu = self._weights((np.asarray(xs, float) - t.x0) / t.dx, nx)
-        iv, wv = self._weights((np.asarray(ys, float) - t.y0) / t.dy, ny)
-        pad = self.pad
-        c0, c1 = int(iu.min()) - 1 + pad, int(iu.max()) + 3 + pad
-        r0, r1 = int(iv.min()) - 1 + pad, int(iv.max()) + 3 + pad
-        if (c1 - c0) * (r1 - r0) <= 16 * (xs.size + ys.size) ** 2:
-            # small support: banded weight matrices and two dense products
-            Wx = np.zeros((xs.size, c1 - c0))
-            Wy = np.zeros((ys.size, r1 - r0))
-            ix, iy = np.arange(xs.size), np.arange(ys.size)
-            for a in range(4):
-                Wx[ix, iu + (a - 1 + pad - c0)] = wu[a]
-                Wy[iy, iv + (a - 1 + pad - r0)] = wv[a]
-            return Wx @ t.coefficients[r0:r1, c0:c1].T @ Wy.T
-        C = t.coefficients[r0:r1]  # rows (y) in the support
-        Gx = sum(wu[a][:, None] * C[:, iu + a - 1 + pad].T for a in range(4))
-        return sum(wv[b][None, :] * Gx[:, iv + b - 1 + pad - r0] for b in range(4))
-
-
-def _diff(v: np.ndarray, a: np.ndarray, axis: int) -> np.ndarray:
-    """Central differences along ``axis`` of a uniform grid (one-sided at the ends)."""
-    v = np.moveaxis(v, axis, 0)
-    g = np.empty_like(v)
-    h = a[1] - a[0]
-    g[1:-1] = (v[2:] - v[:-2]) / (2.0 * h)
-    g[0] = (v[1] - v[0]) / h
-    g[-1] = (v[-1] - v[-2]) / h
-    return np.moveaxis(g, 0, axis)
-
-
-class GridLikelihood:
-    """Log-likelihood of the gridded measurement rows on a tensor grid of the gridded states."""
-
-    def __init__(self, model, part: Partition) -> None:
-        self.model = model
-        self.part = part
-        self.terrain_rows: dict[int, TerrainGrid] = {}
-        terrain = getattr(model, "terrain", None)
-        if terrain is not None and len(part.p) == 2:
-            rng = np.random.default_rng(0)
-            xmin, xmax, ymin, ymax = terrain.extent
-            pts = np.zeros((16, model.nx))
-            pts[:, part.p[0]] = rng.uniform(xmin, xmax, 16)
-            pts[:, part.p[1]] = rng.uniform(ymin, ymax, 16)
-            hb = model.h_batch(pts)
-            ref = terrain.depth(pts[:, part.p[0]], pts[:, part.p[1]])
-            tg = TerrainGrid(terrain)
-            for r in part.rows_grid:
-                if np.allclose(hb[:, r], ref, rtol=0, atol=1e-6):
-                    self.terrain_rows[r] = tg
-
-    def loglik(
-        self, axes: list[np.ndarray], z: np.ndarray, rows: list[int], x_full, resolution=None
-    ) -> np.ndarray:
-        """``log p(z_rows | x_p)`` up to a constant, shape ``(len(a) for a in axes)``.
-
-        ``resolution`` (one length per gridded state, optional): the scale below which the
-        density representation cannot resolve position. The measurement variance is then
-        inflated by the variation of ``h`` within such a cell, ``sum_d (dh/dx_d)^2 res_d^2 / 12``
-        (gradient by central differences on the grid), so that a likelihood rougher than the
-        representation is not sampled as if it were exact.
-        """
-        shape = tuple(a.size for a in axes)
-        pred = np.empty(shape + (len(rows),))
-        generic = [r for r in rows if r not in self.terrain_rows]
-        if generic:
-            mesh = np.meshgrid(*axes, indexing="ij")
-            X = np.tile(np.asarray(x_full, float), (mesh[0].size, 1))
-            for d, i in enumerate(self.part.p):
-                X[:, i] = mesh[d].ravel()
-            hb = self.model.h_batch(X)
-        for c, r in enumerate(rows):
-            if r in self.terrain_rows:
-                pred[..., c] = self.terrain_rows[r].depth(axes[0], axes[1])
-            else:
-                pred[..., c] = hb[:, r].reshape(shape)
-        e = z[rows] - pred
-        R = self.model.R[np.ix_(rows, rows)]
-        if resolution is None:
-            if len(rows) == 1:
-                return -0.5 * e[..., 0] ** 2 / R[0, 0]
-            L = np.linalg.cholesky(R)
-            y = np.linalg.solve(L, e.reshape(-1, len(rows)).T)
-            return -0.5 * np.sum(y * y, axis=0).reshape(shape)
-        extra = np.zeros(shape + (len(rows),))
-        for d, a in enumerate(axes):
-            if a.size < 3:
-                continue
-            g = _diff(pred, a, d)
-            extra += g * g * (float(resolution[d]) ** 2 / 12.0)
-        if len(rows) == 1:
-            var = R[0, 0] + extra[..., 0]
-            return -0.5 * (e[..., 0] ** 2 / var + np.log(var))
-        S = R + extra[..., :, None] * np.eye(len(rows))
-        L = np.linalg.cholesky(S)
-        y = np.linalg.solve(L, e[..., None])[..., 0]
-        logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
-        return -0.5 * (np.sum(y * y, axis=-1) + logdet)

@@ -359,3 +359,18 @@ def exponential_filter(basis: SpectralBasis, order: float, alpha: float = 36.0) 
     for _ in range(basis.n - 1):
         out = np.multiply.outer(out, s)
     return out
+
+
+def jackson_factors(basis: SpectralBasis) -> np.ndarray:
+    """Jackson damping ``g_|q|`` (tensor product): the smoothed series is the convolution of the
+    density with the positive Jackson kernel, hence nonnegative, and keeps its mass (``g_0 = 1``);
+    the kernel's width is about ``L / (2K + 2)`` (kernel polynomial method, Weisse et al. 2006).
+    """
+    N = basis.K
+    q = np.abs(basis.q)
+    a = np.pi / (N + 2)
+    g = ((N + 2 - q) * np.cos(a * q) + np.sin(a * q) / np.tan(a)) / (N + 2)
+    out = g
+    for _ in range(basis.n - 1):
+        out = np.multiply.outer(out, g)
+    return out

@@ -29,6 +29,7 @@ class CasadiModel:
         measurement_names: tuple[str, ...],
         substeps: int = 1,
     ) -> None:
+        self.ode = ode  # the continuous drift (projection filters use it)
         self.nx = int(ode.size1_in(0))
         self.nu = int(ode.size1_in(1))
         self.nw = int(ode.size1_in(2))

@@ -112,7 +112,8 @@ def results_table(summary: dict) -> str:
     return head + "\n".join(rows) + "\n"
 
 
-def write_report(result, bathy, model, truth: list[str], names: list[str]) -> Path:
+def write_report(result, bathy, model, truth: list[str], names: list[str],
+                 extra_figures: list[Path] = ()) -> Path:
     out = Path(result.out_dir)
     cols, meta = read_log(result.log_path)
     states = list(model.state_names)
@@ -130,6 +131,7 @@ def write_report(result, bathy, model, truth: list[str], names: list[str]) -> Pa
         f"FMUs per step: {1e6 * s['timing']['fmus_per_step_s']:.1f} µs.\n\n"
         "![trajectory](trajectory.png)\n\n![position error](position_error.png)\n\n"
         "![position error norm](position_error_norm.png)\n"
+        + "".join(f"\n![{p.stem}]({p.name})\n" for p in extra_figures)
     )
     path = out / "report.md"
     path.write_text(text)

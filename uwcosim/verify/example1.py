@@ -157,7 +157,7 @@ def draw_figures(runs: list[Example1Run], out_dir: Path) -> list[Path]:
     small = runs[0]
 
     fig, axs = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
-    for ax, run in zip(axs, (small, best)):
+    for ax, run in zip(axs, (small, best), strict=True):
         for i in range(0, best.times.size, 10):
             t = run.times[i]
             ax.plot(X_ERR, exact(X_ERR, t), color="0.6", lw=2.5)

@@ -1,7 +1,8 @@
 """Command-line interface: a thin layer over the library.
 
 ``uwcosim run SCENARIO [--seed N] [--out DIR] [--set key=value ...]``
-``uwcosim fmu build|info|validate ...``, ``uwcosim verify example1``.
+``uwcosim fmu build|info|validate|check ...``, ``uwcosim regress RUN BASELINE``,
+``uwcosim baseline update|check``, ``uwcosim campaign SPEC``, ``uwcosim verify example1``.
 User errors are caught once here: one line on stderr, a non-zero exit status, no traceback.
 """
 
@@ -58,6 +59,53 @@ def _cmd_fmu_validate(args) -> int:
     return 1 if problems else 0
 
 
+def _cmd_fmu_check(args) -> int:
+    from uwcosim.fmu.check import check_fmu
+
+    report = check_fmu(args.fmu, role=args.role, map_file=args.map, interface=args.interface,
+                       duration=args.duration, step=args.step, timeout_s=args.timeout)
+    print(report.text())
+    return 0 if report.ok else 1
+
+
+def _cmd_regress(args) -> int:
+    from uwcosim.regress.compare import compare_logs, log_file
+
+    plots = None
+    if not args.no_plots:
+        run = Path(args.run)
+        plots = Path(args.plots) if args.plots else (
+            run / "regress" if run.is_dir() else log_file(run).with_name(f"{run.stem}_regress"))
+    report = compare_logs(args.run, args.baseline, args.rtol, args.atol, args.ttol,
+                          args.signals, plot_dir=plots)
+    print(report.text())
+    return 0 if report.ok else 1
+
+
+def _cmd_baseline(args) -> int:
+    from uwcosim.regress.baselines import (
+        DEFAULT_OVERRIDES,
+        check_baseline,
+        shipped_scenarios,
+        update_baseline,
+    )
+
+    scenarios = [Path(s) for s in args.scenarios] or shipped_scenarios(args.scenario_dir)
+    bad = 0
+    for sc in scenarios:
+        if args.baseline_command == "update":
+            res = update_baseline(sc, Path(args.dir), [*DEFAULT_OVERRIDES, *(args.set or [])])
+            print(f"{res.baseline}: {res.status}")
+            if res.status == "changed" and res.report is not None:
+                print("\n".join("  " + line for line in res.report.text().splitlines()[1:]))
+        else:
+            plots = Path(args.plots) / sc.stem if args.plots else None
+            res = check_baseline(sc, Path(args.dir), args.rtol, args.atol, args.ttol, plots)
+            print(res.report.text())
+            bad += res.status != "ok"
+    return 1 if bad else 0
+
+
 def _cmd_verify(args) -> int:
     from uwcosim.verify.example1 import run_example1
 
@@ -111,6 +159,18 @@ def build_parser() -> argparse.ArgumentParser:
     v = fs.add_parser("validate", help="validate an FMU (exit 1 if it has problems)")
     v.add_argument("fmu")
     v.set_defaults(func=_cmd_fmu_validate)
+    k = fs.add_parser("check", help="can this FMU play a role? validation, capabilities, "
+                      "variable map, smoke run (exit 1 if incompatible)")
+    k.add_argument("fmu")
+    k.add_argument("--role", choices=["vehicle"], default=None,
+                   help="check the roles of this part (and smoke-run a vehicle)")
+    k.add_argument("--map", default=None, help="variable map (TOML: role = {var=..., unit=...})")
+    k.add_argument("--interface", choices=["cs", "me"], default=None,
+                   help="interface of the smoke run (default: co-simulation if available)")
+    k.add_argument("--duration", type=float, default=10.0, help="smoke run length (s)")
+    k.add_argument("--step", type=float, default=0.5, help="smoke run step (s)")
+    k.add_argument("--timeout", type=float, default=30.0, help="time limit per FMU call (s)")
+    k.set_defaults(func=_cmd_fmu_check)
 
     c = sub.add_parser("campaign", help="Monte Carlo campaign (local processes or Dask)")
     c.add_argument("spec")
@@ -120,6 +180,44 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--out", default=None, help="campaign directory")
     c.add_argument("--resume", action="store_true", help="skip runs already finished")
     c.set_defaults(func=_cmd_campaign)
+
+    from uwcosim.regress.compare import DEFAULT_ATOL, DEFAULT_RTOL, DEFAULT_TTOL
+
+    def tolerances(parser) -> None:
+        parser.add_argument("--rtol", type=float, default=DEFAULT_RTOL,
+                            help="value tolerance relative to max|baseline| of each signal")
+        parser.add_argument("--atol", type=float, default=DEFAULT_ATOL,
+                            help="absolute value tolerance")
+        parser.add_argument("--ttol", type=float, default=DEFAULT_TTOL,
+                            help="time tolerance (s): width of the tube in time")
+
+    g = sub.add_parser("regress", help="compare a run's log with a baseline log (exit 1 if a "
+                       "signal leaves its tolerance tube, 2 on bad input)")
+    g.add_argument("run", help="run directory or log.parquet")
+    g.add_argument("baseline", help="baseline run directory or .parquet log")
+    tolerances(g)
+    g.add_argument("--signals", action="append", metavar="GLOB",
+                   help="compare only these signals (fnmatch globs; repeatable)")
+    g.add_argument("--plots", default=None,
+                   help="folder of the diff plots (default: RUN/regress)")
+    g.add_argument("--no-plots", action="store_true", help="no diff plots")
+    g.set_defaults(func=_cmd_regress)
+
+    bl = sub.add_parser("baseline", help="golden baselines of the shipped scenarios")
+    bls = bl.add_subparsers(dest="baseline_command", required=True)
+    for name, text in (("update", "regenerate the baselines (a deliberate change)"),
+                       ("check", "run the scenarios and compare with their baselines")):
+        q = bls.add_parser(name, help=text)
+        q.add_argument("scenarios", nargs="*", help="default: every scenarios/*.toml")
+        q.add_argument("--dir", default="tests/baselines", help="baseline folder")
+        q.add_argument("--scenario-dir", default="scenarios")
+        if name == "update":
+            q.add_argument("--set", action="append", metavar="KEY=VALUE",
+                           help="extra override (after run.duration=300)")
+        else:
+            tolerances(q)
+            q.add_argument("--plots", default=None, help="folder for diff plots of failures")
+        q.set_defaults(func=_cmd_baseline)
 
     ver = sub.add_parser("verify", help="verification examples")
     ver.add_argument("example", choices=["example1"])

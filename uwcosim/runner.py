@@ -153,6 +153,8 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
             "seed": master.seed, "versions": package_versions(), "fmus": master.fmu_hashes(),
             "step": master.h, "start_time": master.t0,
         }
+        if master.variable_maps():  # third-party FMUs: roles, variables and conversions
+            meta["variable_maps"] = master.variable_maps()
         logger = RunLogger(log_path, cols, flags, meta, spec.log.chunk_steps)
         hook = _LogHook(master, bank, logger, np.array(slots, dtype=np.intp), model)
         hook(master)

@@ -20,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from uwcosim.errors import FMUError
+from uwcosim.errors import FMUError, ScenarioError
+from uwcosim.master.varmap import VariableMap, resolve_map
 
 STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 
@@ -92,16 +93,39 @@ def cleanup_unzipped() -> None:
 
 @dataclass
 class Binding:
-    """Value references and a value buffer ready for one get or set call."""
+    """Value references and a value buffer ready for one get or set call.
+
+    ``view`` holds the values in our units, ``raw`` (a numpy view on the ctypes buffer) in the
+    FMU's. Without a unit conversion they are the same array; with one (a variable map),
+    ``ours = scale * theirs + offset`` is applied to the whole vector in one numpy operation.
+    """
 
     names: tuple[str, ...]
-    vr: ctypes.Array
-    buf: ctypes.Array
-    view: np.ndarray  # numpy view on buf
+    vr: ctypes.Array | None
+    buf: ctypes.Array | None
+    view: np.ndarray  # values in our units
+    raw: np.ndarray | None = None  # numpy view on buf (FMU units); None: same as view
+    scale: np.ndarray | None = None  # None: identity conversion
+    offset: np.ndarray | None = None
 
     @property
     def n(self) -> int:
         return len(self.names)
+
+    @classmethod
+    def plain(cls, names) -> Binding:
+        """A binding without FMU buffers (values only), e.g. for an out-of-process FMU."""
+        return cls(tuple(names), None, None, np.zeros(len(names)))
+
+    def to_fmu(self) -> None:
+        if self.scale is not None:
+            np.subtract(self.view, self.offset, out=self.raw)
+            np.divide(self.raw, self.scale, out=self.raw)
+
+    def from_fmu(self) -> None:
+        if self.scale is not None:
+            np.multiply(self.raw, self.scale, out=self.view)
+            np.add(self.view, self.offset, out=self.view)
 
 
 class FMUAdapter:
@@ -115,6 +139,7 @@ class FMUAdapter:
         solver: str = "rk4",
         substeps: int = 1,
         rtol: float = 1e-8,
+        varmap: VariableMap | None = None,
     ) -> None:
         self.name = name
         self.path = Path(path)
@@ -125,7 +150,10 @@ class FMUAdapter:
         self.solver = solver
         self.substeps = substeps
         self.rtol = rtol
-        self.variables = {v.name: v for v in self.md.modelVariables}
+        self.fmu_variables = {v.name: v for v in self.md.modelVariables}
+        self.varmap = varmap or VariableMap.identity(self.md)
+        #: the variables under the names the master uses (roles of a variable map, or as is)
+        self.variables = self.varmap.exposed
         self.messages: list[str] = []
         kind = self.md.coSimulation if interface == "cs" else self.md.modelExchange
         if kind is None:
@@ -145,15 +173,45 @@ class FMUAdapter:
     def variable(self, name: str):
         v = self.variables.get(name)
         if v is None:
-            raise FMUError(f"{self.path}: FMU '{self.name}' has no variable {name!r}")
+            mapped = " (variable map: roles " + ", ".join(self.varmap.aliases) + ")" \
+                if self.varmap.aliases else ""
+            raise FMUError(f"{self.path}: FMU '{self.name}' has no variable {name!r}{mapped}")
         return v
+
+    def use_map(self, entries: dict[str, dict], role: str | None = None, where: str = "",
+                prefix: str = "") -> VariableMap:
+        """Expose the FMU under the roles of a variable map (before :meth:`bind`)."""
+        vmap, problems = resolve_map(entries, self.md, role, where or str(self.path), prefix)
+        if problems:
+            raise ScenarioError(problems[0])
+        self.varmap = vmap
+        self.variables = vmap.exposed
+        return vmap
+
+    def real_outputs(self) -> list[str]:
+        """Names (as exposed) of the Real outputs, in model-description order."""
+        return [n for n, v in self.variables.items()
+                if v.causality == "output" and v.type in ("Real", "Float64")]
+
+    def feedthrough(self) -> dict[str, set[str]]:
+        """``{output: {inputs it depends on directly}}`` under the exposed names."""
+        from uwcosim.master.graph import feedthrough
+
+        ren = self.varmap.raw_to_exposed
+        return {ren[o]: {ren[i] for i in ins if i in ren}
+                for o, ins in feedthrough(self.md).items() if o in ren}
 
     def bind(self, names: list[str] | tuple[str, ...]) -> Binding:
         vrt = ctypes.c_uint32
         vr = (vrt * len(names))(*[self.variable(n).valueReference for n in names])
         buf = (ctypes.c_double * len(names))()
-        view = np.ctypeslib.as_array(buf) if len(names) else np.zeros(0)
-        return Binding(tuple(names), vr, buf, view)
+        raw = np.ctypeslib.as_array(buf) if len(names) else np.zeros(0)
+        affine = [self.varmap.affine(n) for n in names]
+        if all(a == (1.0, 0.0) for a in affine):
+            return Binding(tuple(names), vr, buf, raw, raw)
+        scale = np.array([a[0] for a in affine])
+        offset = np.array([a[1] for a in affine])
+        return Binding(tuple(names), vr, buf, np.zeros(len(names)), raw, scale, offset)
 
     # -- life cycle -------------------------------------------------------------------------
     def _log(self, *args) -> None:
@@ -220,7 +278,14 @@ class FMUAdapter:
         """Set parameters/start values of any type by name (setup only, not the hot path)."""
         fmu = self._fmu
         for name, value in values.items():
-            v = self.variable(name)
+            alias = self.varmap.aliases.get(name)
+            if alias is not None:  # a role: its start variable (or itself), converted
+                v = alias.start_var or alias.var
+                value = alias.to_fmu(value)
+            else:
+                v = self.fmu_variables.get(name)
+                if v is None:
+                    raise FMUError(f"{self.path}: FMU '{self.name}' has no variable {name!r}")
             vr = [v.valueReference]
             t = v.type
             if t in ("Real", "Float64", "Float32"):
@@ -289,6 +354,8 @@ class FMUAdapter:
 
     def set_inputs(self, b: Binding, t: float) -> None:
         if b.n:
+            if b.scale is not None:
+                b.to_fmu()
             if self.fmi3:
                 st = self._set(self._c, b.vr, b.n, b.buf, b.n)
             else:
@@ -302,6 +369,8 @@ class FMUAdapter:
             else:
                 st = self._get(self._c, b.vr, b.n, b.buf)
             self._check(st, "get outputs", t)
+            if b.scale is not None:
+                b.from_fmu()
         return b.view
 
     def do_step(self, t: float, h: float, inputs: Binding, input_fn: Callable | None) -> None:

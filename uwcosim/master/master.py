@@ -26,7 +26,8 @@ import numpy as np
 
 from uwcosim.errors import FMUError, ScenarioError
 from uwcosim.master.adapter import Binding, FMUAdapter
-from uwcosim.master.graph import feedthrough, stepping_order
+from uwcosim.master.graph import stepping_order
+from uwcosim.master.proxy import ProxyAdapter
 from uwcosim.master.sources import (
     TableControl,
     WaypointHeading,
@@ -35,6 +36,7 @@ from uwcosim.master.sources import (
     stream,
     white_noise,
 )
+from uwcosim.master.varmap import ROLES, load_entries
 from uwcosim.scenario.load import LoadedScenario
 
 
@@ -60,6 +62,18 @@ class Sensor:
     period: int
     received: np.ndarray  # [n_steps + 1] bool: sampled and not lost at step k
     sampled: np.ndarray = field(default=None)
+
+
+class StageInputs:
+    """Refreshes an ME FMU's table-control inputs at the integrator's stage times (picklable,
+    so that an FMU in a worker process can take it along)."""
+
+    def __init__(self, pairs: list[tuple[int, TableControl]]) -> None:
+        self.pairs = pairs
+
+    def __call__(self, t: float, view: np.ndarray) -> None:
+        for j, ctl in self.pairs:
+            view[j] = ctl.value(t)
 
 
 class Master:
@@ -101,14 +115,11 @@ class Master:
     def _build(self) -> None:
         spec = self.spec
         for name, f in spec.fmus.items():
-            self.adapters[name] = FMUAdapter(
-                name, self.loaded.resolve(f.path), f.interface, f.solver, f.substeps, f.rtol
-            )
+            self.adapters[name] = self._open(name, f)
         self.slots: dict[str, int] = {}
         for name, ad in self.adapters.items():
-            for v in ad.md.modelVariables:
-                if v.causality == "output" and v.type in ("Real", "Float64"):
-                    self.slots[f"{name}.{v.name}"] = len(self.slots)
+            for out in ad.real_outputs():
+                self.slots[f"{name}.{out}"] = len(self.slots)
         drivers: dict[str, str] = {}  # input signal -> source name (for error messages)
         self.controls: dict[str, object] = {}
         for cname, c in spec.controls.items():
@@ -134,7 +145,7 @@ class Master:
             self._check_input(dst, f"connections[{i}]", drivers, src)
         self.drivers = drivers
         self.bus = np.zeros(len(self.slots))
-        deps = {n: feedthrough(a.md) for n, a in self.adapters.items()}
+        deps = {n: a.feedthrough() for n, a in self.adapters.items()}
         order = stepping_order(list(self.adapters), list(spec.connections), deps)
         self.nodes: list[_Node] = []
         for name in order:
@@ -156,6 +167,21 @@ class Master:
         self._sample_sources()
         self.sensors = self._build_sensors()
 
+    def _open(self, name: str, f) -> FMUAdapter | ProxyAdapter:
+        """The adapter of FMU ``name``: in this process, or in a worker when ``timeout_s``."""
+        path = self.loaded.resolve(f.path)
+        if f.timeout_s is not None:
+            ad = ProxyAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol, f.timeout_s)
+        else:
+            ad = FMUAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol)
+        if f.map is not None:
+            self.adapters[name] = ad  # closed with the others if the map is refused
+            entries, where, prefix = load_entries(f.map, self.loaded.base_dir,
+                                                  str(self.loaded.path), f"fmus.{name}.map")
+            role = f.role or (name if name in ROLES else None)
+            ad.use_map(entries, role, where, prefix)
+        return ad
+
     def _slot(self, signal: str, key: str) -> int:
         if signal not in self.slots:
             fmu, _, var = signal.partition(".")
@@ -164,10 +190,18 @@ class Master:
                                     f"(FMUs: {', '.join(self.adapters)})")
             v = self.adapters[fmu].variables.get(var)
             if v is None:
-                raise ScenarioError(f"{self._where(key)}: FMU {fmu!r} has no variable {var!r}")
+                raise ScenarioError(self._no_variable(fmu, var, key))
             raise ScenarioError(f"{self._where(key)}: {signal!r} is not a Real output "
                                 f"(causality {v.causality!r}, type {v.type})")
         return self.slots[signal]
+
+    def _no_variable(self, fmu: str, var: str, key: str) -> str:
+        vmap = self.adapters[fmu].varmap
+        hint = ""
+        if vmap.aliases:
+            hint = (f" (fmus.{fmu}.map gives roles {', '.join(vmap.aliases)}; "
+                    f"map {var!r} there)")
+        return f"{self._where(key)}: FMU {fmu!r} has no variable {var!r}{hint}"
 
     def _check_input(self, signal: str, key: str, drivers: dict, source: str) -> None:
         fmu, _, var = signal.partition(".")
@@ -176,7 +210,7 @@ class Master:
                                 f"(FMUs: {', '.join(self.adapters)})")
         v = self.adapters[fmu].variables.get(var)
         if v is None:
-            raise ScenarioError(f"{self._where(key)}: FMU {fmu!r} has no variable {var!r}")
+            raise ScenarioError(self._no_variable(fmu, var, key))
         if v.causality != "input":
             raise ScenarioError(f"{self._where(key)}: {signal!r} has causality "
                                 f"{v.causality!r}, expected 'input'")
@@ -194,14 +228,7 @@ class Master:
                 ctl = self.controls[src.split(".", 1)[1]]
                 if isinstance(ctl, TableControl):
                     pairs.append((j, ctl))
-        if not pairs:
-            return None
-
-        def fill(t: float, view: np.ndarray) -> None:
-            for j, ctl in pairs:
-                view[j] = ctl.value(t)
-
-        return fill
+        return StageInputs(pairs) if pairs else None
 
     def _sample_sources(self) -> None:
         n = self.n_steps + 1
@@ -314,6 +341,11 @@ class Master:
         out = {f"fmu.{n.adapter.name}_s": n.time_s for n in self.nodes}
         out["master_s"] = self.master_time_s
         return out
+
+    def variable_maps(self) -> dict[str, dict[str, list]]:
+        """``{fmu: {role: [FMU variable, scale, offset]}}`` of the FMUs with a variable map."""
+        return {n: {r: [a.var.name, a.scale, a.offset] for r, a in ad.varmap.aliases.items()}
+                for n, ad in self.adapters.items() if ad.varmap.aliases}
 
     def fmu_hashes(self) -> dict[str, str]:
         return {n: a.sha256 for n, a in self.adapters.items()}

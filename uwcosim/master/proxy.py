@@ -1,0 +1,271 @@
+"""An FMU in a worker process, so that a call that hangs can be given up (``timeout_s``).
+
+A call into an FMU's shared library cannot be interrupted from Python. When a scenario sets
+``[fmus.NAME] timeout_s``, the master uses a :class:`ProxyAdapter` instead of an
+:class:`~uwcosim.master.adapter.FMUAdapter`: same interface, but the FMU is loaded and stepped
+by a worker process (``python -m uwcosim.master.proxy``) that runs an ordinary ``FMUAdapter``.
+Requests and answers are pickled over two pipes; every answer is awaited at most ``timeout_s``
+seconds, after which the worker is killed and :class:`~uwcosim.errors.FMUError` says which call
+did not answer, e.g. ``FMU 'fault' did not answer doStep within 5 s at t=3``. A worker that
+crashes (segmentation fault in the FMU) is reported the same way instead of taking the run down.
+
+The proxy keeps a description-only adapter (model description and variable map; the FMU's
+library is not loaded in this process) for names, causalities and the connection graph.
+Pipes with ``multiprocessing.connection.Connection`` on file descriptors: POSIX only.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import weakref
+from multiprocessing.connection import Connection
+from pathlib import Path
+
+import numpy as np
+
+from uwcosim.errors import FMUError, ScenarioError
+from uwcosim.master.adapter import Binding, FMUAdapter
+
+#: seconds allowed for the worker to start (imports) before the first FMU call
+STARTUP_S = 60.0
+_ERRORS = {"FMUError": FMUError, "ScenarioError": ScenarioError}
+
+
+def _kill(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.kill()
+    proc.wait()
+
+
+class ProxyAdapter:
+    """An :class:`FMUAdapter` look-alike whose FMU runs in a worker process."""
+
+    def __init__(self, name: str, path: Path, interface: str = "cs", solver: str = "rk4",
+                 substeps: int = 1, rtol: float = 1e-8, timeout_s: float = 10.0) -> None:
+        self.local = FMUAdapter(name, path, interface, solver, substeps, rtol)
+        self.name, self.path, self.md = name, self.local.path, self.local.md
+        self.sha256, self.fmi3 = self.local.sha256, self.local.fmi3
+        self.interface, self.nx = interface, self.local.nx
+        self.messages = self.local.messages
+        self.timeout_s = float(timeout_s)
+        self.time_s = 0.0
+        self._args = (name, str(self.local.path), interface, solver, substeps, rtol)
+        self._map: tuple | None = None
+        self._bindings: list[Binding] = []
+        self._ids: dict[int, int] = {}
+        self._sent: list[int] = []  # bindings the worker knows
+        self._fn = None
+        self._outs: list[int] = []  # bindings read after each step: sent with the step answer
+        self._fresh: dict[int, bytes] = {}
+        self._proc: subprocess.Popen | None = None
+        self._req = self._resp = None
+        self._finalizer = None
+
+    # -- description (local) ----------------------------------------------------------------
+    @property
+    def variables(self) -> dict:
+        return self.local.variables
+
+    @property
+    def varmap(self):
+        return self.local.varmap
+
+    def variable(self, name: str):
+        return self.local.variable(name)
+
+    def use_map(self, entries, role=None, where="", prefix=""):
+        vmap = self.local.use_map(entries, role, where, prefix)
+        self._map = (entries, role, where, prefix)
+        return vmap
+
+    def real_outputs(self) -> list[str]:
+        return self.local.real_outputs()
+
+    def feedthrough(self) -> dict[str, set[str]]:
+        return self.local.feedthrough()
+
+    def bind(self, names) -> Binding:
+        for n in names:
+            self.local.variable(n)
+        b = Binding.plain(names)
+        self._ids[id(b)] = len(self._bindings)
+        self._bindings.append(b)
+        return b
+
+    # -- the worker -------------------------------------------------------------------------
+    def _start(self) -> None:
+        import uwcosim
+
+        req_r, req_w = os.pipe()
+        resp_r, resp_w = os.pipe()
+        env = dict(os.environ)
+        root = str(Path(uwcosim.__file__).resolve().parents[1])
+        env["PYTHONPATH"] = os.pathsep.join([root, *filter(None, [env.get("PYTHONPATH")])])
+        try:
+            self._proc = subprocess.Popen(
+                [sys.executable, "-m", "uwcosim.master.proxy", str(req_r), str(resp_w)],
+                pass_fds=(req_r, resp_w), stdin=subprocess.DEVNULL, env=env)
+        finally:
+            os.close(req_r)
+            os.close(resp_w)
+        self._req = Connection(req_w, readable=False)
+        self._resp = Connection(resp_r, writable=False)
+        self._finalizer = weakref.finalize(self, _kill, self._proc)
+        self._call("start", 0.0, ("open", self._args, self._map), limit=STARTUP_S)
+
+    def _call(self, what: str, t: float, request: tuple, limit: float | None = None):
+        if self._proc is None:
+            raise FMUError(f"FMU '{self.name}' ({self.path.name}): worker process not running "
+                           f"({what} at t={t:g})")
+        try:
+            self._req.send(request)
+            ready = self._resp.poll(self.timeout_s if limit is None else limit)
+            answer = self._resp.recv() if ready else None
+        except (EOFError, OSError, BrokenPipeError):
+            rc = self._proc.wait()
+            self._stop()
+            raise FMUError(f"FMU '{self.name}' ({self.path.name}): worker process died during "
+                           f"{what} at t={t:g} (exit status {rc})") from None
+        if answer is None:
+            self._stop()
+            raise FMUError(f"FMU '{self.name}' did not answer {what} within "
+                           f"{self.timeout_s if limit is None else limit:g} s at t={t:g} "
+                           f"(worker process killed)")
+        if answer[0] == "error":
+            cls = _ERRORS.get(answer[1], FMUError)
+            raise cls(answer[2] if answer[1] in _ERRORS else
+                      f"FMU '{self.name}': {what} failed at t={t:g} ({answer[1]}: {answer[2]})")
+        return answer[1]
+
+    def _stop(self) -> None:
+        proc, self._proc = self._proc, None
+        if proc is not None:
+            _kill(proc)
+        for c in (self._req, self._resp):
+            if c is not None:
+                c.close()
+        self._req = self._resp = None
+        if self._finalizer is not None:
+            self._finalizer.detach()
+
+    def _sync_bindings(self, t: float) -> None:
+        for i in range(len(self._sent), len(self._bindings)):
+            self._call("bind", t, ("bind", self._bindings[i].names))
+            self._sent.append(i)
+
+    # -- life cycle and hot path --------------------------------------------------------------
+    def instantiate(self, parameters: dict, start: dict, t0: float, t_stop: float) -> None:
+        if self._proc is None:
+            self._start()
+        self._sync_bindings(t0)
+        self._call("instantiate", t0, ("instantiate", parameters, start, t0, t_stop))
+
+    def set_inputs(self, b: Binding, t: float) -> None:
+        self._fresh.clear()
+        if b.n:
+            self._sync_bindings(t)
+            self._call("set inputs", t, ("set", self._ids[id(b)], b.view.tobytes(), t))
+
+    def get_outputs(self, b: Binding, t: float) -> np.ndarray:
+        if b.n:
+            i = self._ids[id(b)]
+            data = self._fresh.pop(i, None)
+            if data is None:  # not sent along with the last step's answer
+                self._sync_bindings(t)
+                data = self._call("get outputs", t, ("get", i, t))
+                if i not in self._outs:
+                    self._outs.append(i)
+            b.view[:] = np.frombuffer(data)
+        return b.view
+
+    def do_step(self, t: float, h: float, inputs: Binding, input_fn=None) -> None:
+        """One round trip: inputs in, doStep, and the outputs read after the last step out."""
+        self._fresh.clear()
+        self._sync_bindings(t)
+        fn = None
+        if input_fn is not self._fn:  # sent once (pickled): table controls for ME stages
+            self._fn = fn = input_fn
+        values = self._call("doStep", t, ("step", t, h, self._ids[id(inputs)],
+                                          inputs.view.tobytes(), fn is not None, fn,
+                                          tuple(self._outs)))
+        self._fresh = dict(zip(self._outs, values))
+
+    def reset(self) -> None:
+        if self._proc is not None:
+            self._call("reset", 0.0, ("reset",))
+
+    def close(self) -> None:
+        if self._proc is None:
+            return
+        try:
+            self._call("terminate", 0.0, ("close",))
+        except FMUError:
+            pass
+        self._stop()
+
+
+# -- worker side ------------------------------------------------------------------------------
+def _serve(req: Connection, resp: Connection) -> None:
+    adapter: FMUAdapter | None = None
+    bindings: list[Binding] = []
+    fn = None
+    while True:
+        try:
+            msg = req.recv()
+        except EOFError:
+            break
+        op = msg[0]
+        try:
+            out = None
+            if op == "open":
+                adapter = FMUAdapter(*msg[1])
+                if msg[2] is not None:
+                    adapter.use_map(*msg[2])
+            elif op == "bind":
+                bindings.append(adapter.bind(msg[1]))
+            elif op == "instantiate":
+                adapter.instantiate(*msg[1:])
+            elif op == "set":
+                b = bindings[msg[1]]
+                b.view[:] = np.frombuffer(msg[2])
+                adapter.set_inputs(b, msg[3])
+            elif op == "get":
+                out = adapter.get_outputs(bindings[msg[1]], msg[2]).tobytes()
+            elif op == "step":
+                _, t, h, i, values, new_fn, f, outs = msg
+                if new_fn:
+                    fn = f
+                b = bindings[i]
+                b.view[:] = np.frombuffer(values)
+                adapter.do_step(t, h, b, fn)
+                out = [adapter.get_outputs(bindings[j], t + h).tobytes() for j in outs]
+            elif op == "reset":
+                adapter.reset()
+            elif op == "close":
+                adapter.close() if adapter is not None else None
+                resp.send(("ok", None))
+                break
+            resp.send(("ok", out))
+        except Exception as exc:  # noqa: BLE001 - every error goes back to the master
+            resp.send(("error", type(exc).__name__, str(exc)))
+
+
+def main(argv: list[str] | None = None) -> int:
+    import signal
+
+    # Ctrl-C reaches the whole process group: the master decides, and closes or kills us
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    argv = sys.argv[1:] if argv is None else argv
+    req = Connection(int(argv[0]), writable=False)
+    resp = Connection(int(argv[1]), readable=False)
+    try:
+        _serve(req, resp)
+    except (BrokenPipeError, EOFError):
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 UWC    := $(VENV)/bin/uwcosim
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test fmus lint bench clean
+.PHONY: demo test fmus lint bench baselines clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,9 @@ demo: fmus
 
 test: fmus
 	$(PY) -m pytest -q
+
+baselines: fmus
+	$(UWC) baseline update
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check uwcosim tests benchmarks

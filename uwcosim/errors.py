@@ -45,3 +45,10 @@ class RunInterrupted(UwcosimError):
 
 class FilterDivergence(FilterError):
     """An estimator produced NaN or a covariance not positive definite beyond repair."""
+
+
+class RegressionInputError(UwcosimError):
+    """Bad input to a regression comparison: missing or unreadable log, no common signals,
+    time ranges that do not overlap (exit status 2)."""
+
+    exit_code = 2

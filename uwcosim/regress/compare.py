@@ -28,18 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-from uwcosim.errors import UwcosimError
+from uwcosim.errors import RegressionInputError, UwcosimError
 
 DEFAULT_RTOL = 1e-6
 DEFAULT_ATOL = 1e-9
 DEFAULT_TTOL = 0.0
-
-
-class RegressionInputError(UwcosimError):
-    """Bad input to a regression comparison: missing or unreadable log, no common signals,
-    time ranges that do not overlap (exit status 2)."""
-
-    exit_code = 2
 
 
 @dataclass

@@ -164,3 +164,19 @@ def test_lost_measurement_scenario_through_the_cv_fmu(project_fmus, tmp_path):
     # the standard KF skipping lost measurements beats the KF fed zeros (seed 001 eq. 2)
     assert est["kf_skip"]["rmse_position_m"] < 0.1 * est["kf_zero"]["rmse_position_m"]
     assert 0.5 < est["kf_skip"]["anees"] < 1.5
+
+
+def test_reused_master_gives_the_same_log_as_a_fresh_one(tan, tmp_path):
+    """Campaign workers reset FMU instances between runs instead of instantiating again."""
+    loaded = tan(["run.duration=100"])
+    m = Master(loaded)
+    try:
+        run_scenario(loaded, tmp_path / "r1", seed=5, figures=False, master=m)
+        first = dict(m.adapters["vehicle"].__dict__)
+        run_scenario(loaded, tmp_path / "r2", seed=6, figures=False, master=m)
+        assert m.adapters["vehicle"]._fmu is first["_fmu"]  # the same instance, reset
+    finally:
+        m.close()
+    run_scenario(loaded, tmp_path / "fresh", seed=6, figures=False)
+    assert ((tmp_path / "r2/log.parquet").read_bytes()
+            == (tmp_path / "fresh/log.parquet").read_bytes())

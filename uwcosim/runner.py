@@ -113,8 +113,13 @@ def _columns(master: Master, bank, model) -> tuple[list[str], list[int], list[st
 
 
 def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
-                 figures: bool | None = None, progress=None) -> RunResult:
-    """Run ``loaded`` into ``out_dir`` (created). Always leaves a readable log and summary."""
+                 figures: bool | None = None, progress=None,
+                 master: Master | None = None) -> RunResult:
+    """Run ``loaded`` into ``out_dir`` (created). Always leaves a readable log and summary.
+
+    ``master``: a :class:`Master` of the same scenario to reuse (reset, its FMU instances kept
+    and reset); the caller then owns it and closes it. Otherwise a new one is made and closed.
+    """
     from uwcosim.estimation import EstimatorBank
     from uwcosim.evaluation.summary import summarize
     from uwcosim.models.factory import build_model
@@ -135,7 +140,11 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
         fmu, _, par = spec.map.fmu_parameter.partition(".")
         if fmu in spec.fmus:
             overrides[fmu] = {par: str(bathy.write_coefficients(out_dir / "map.bin"))}
-    master = Master(loaded, seed=seed)
+    owner = master is None
+    if owner:
+        master = Master(loaded, seed=seed)
+    else:
+        master.reset(seed)
     log_path = out_dir / "log.parquet"
     logger = None
     failure: UwcosimError | None = None
@@ -176,7 +185,8 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
     finally:
         if logger is not None:
             logger.close()
-        master.close()
+        if owner:
+            master.close()
     status = "ok" if failure is None else (
         "interrupted" if isinstance(failure, RunInterrupted) else "failed")
     summary = summarize(master, bank, status, str(failure or ""), log_path)

@@ -21,6 +21,26 @@ from uwcosim.campaign.spec import Task
 from uwcosim.errors import ScenarioError, UwcosimError
 
 _SCENARIOS: dict = {}  # per worker process: (path, overrides) -> LoadedScenario
+_MASTERS: dict = {}  # per worker process: (path, overrides) -> Master (FMU instances reused)
+
+
+def _master_for(key, loaded):
+    """The worker's master of this scenario: its FMUs are instantiated once and reset between
+    runs when they allow several instances (otherwise a fresh master per run)."""
+    from uwcosim.master.master import Master
+
+    m = _MASTERS.get(key)
+    if m is None:
+        m = Master(loaded)
+        if not all(_reusable(a) for a in m.adapters.values()):
+            return None, m
+        _MASTERS[key] = m
+    return m, m
+
+
+def _reusable(adapter) -> bool:
+    kind = adapter.md.coSimulation if adapter.interface == "cs" else adapter.md.modelExchange
+    return not getattr(kind, "canBeInstantiatedOnlyOncePerProcess", False)
 
 
 def execute_run(task: Task) -> dict:
@@ -41,7 +61,16 @@ def execute_run(task: Task) -> dict:
         else:
             tmp = tempfile.mkdtemp(prefix="uwcosim_run_")
             out = Path(tmp)
-        res = run_scenario(loaded, out, seed=task.seed, figures=False)
+        cached, master = _master_for(key, loaded)
+        try:
+            res = run_scenario(loaded, out, seed=task.seed, figures=False, master=master)
+        except BaseException:
+            # the instances may be in an error state: drop them, the next run starts afresh
+            _MASTERS.pop(key, None)
+            master.close()
+            raise
+        if cached is None:
+            master.close()
         record["estimators"] = res.summary["estimators"]
         record["timing"] = res.summary["timing"]
     except UwcosimError as exc:

@@ -226,8 +226,19 @@ class FMUAdapter:
         del self.messages[:-20]
 
     def instantiate(self, parameters: dict, start: dict, t0: float, t_stop: float) -> None:
-        """Instantiate, set parameters and start values, and initialize at ``t0``."""
+        """Instantiate, set parameters and start values, and initialize at ``t0``.
+
+        An adapter that already holds an instance resets it (``fmi2Reset``/``fmi3Reset``) and
+        initializes it again instead: campaigns reuse one instance per worker for many runs.
+        """
         from fmpy import fmi2, fmi3
+
+        if self._fmu is not None:
+            self.messages.clear()
+            self._guard("reset", self._fmu.reset, t0)
+            self._guard("setup",
+                        lambda: self._initialize(self._fmu, parameters, start, t0, t_stop), t0)
+            return
 
         unzip = _Unzipped.get(self.path, self.sha256)
         guid = self.md.instantiationToken if self.fmi3 else self.md.guid

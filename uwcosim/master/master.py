@@ -263,6 +263,23 @@ class Master:
             out[sname] = Sensor(sname, list(s.outputs), slots, s.period, received, sampled)
         return out
 
+    def reset(self, seed: int | None = None) -> None:
+        """Prepare another run of the same scenario (``seed`` or the scenario's): new noise,
+        losses and initial time; FMU instances are kept and reset by :meth:`initialize`."""
+        self.seed = self.spec.run.seed if seed is None else int(seed)
+        for ctl in self.controls.values():
+            if isinstance(ctl, WaypointHeading):
+                ctl.reset()
+        self._sample_sources()
+        self.sensors = self._build_sensors()
+        self.bus[:] = 0.0
+        self.k = 0
+        self.hooks = []
+        self.master_time_s = 0.0
+        for node in self.nodes:
+            node.time_s = 0.0
+        self._initialized = False
+
     # -- running ----------------------------------------------------------------------------
     def signal(self, name: str) -> float:
         return float(self.bus[self.slots[name]])

@@ -182,15 +182,20 @@ class Master:
             ad.use_map(entries, role, where, prefix)
         return ad
 
+    def _variable(self, signal: str, key: str):
+        """The FMU variable named by ``fmu.variable``, or a one-line ScenarioError."""
+        fmu, _, var = signal.partition(".")
+        if fmu not in self.adapters:
+            raise ScenarioError(f"{self._where(key)}: unknown FMU {fmu!r} in {signal!r} "
+                                f"(FMUs: {', '.join(self.adapters)})")
+        v = self.adapters[fmu].variables.get(var)
+        if v is None:
+            raise ScenarioError(self._no_variable(fmu, var, key))
+        return v
+
     def _slot(self, signal: str, key: str) -> int:
         if signal not in self.slots:
-            fmu, _, var = signal.partition(".")
-            if fmu not in self.adapters:
-                raise ScenarioError(f"{self._where(key)}: unknown FMU {fmu!r} in {signal!r} "
-                                    f"(FMUs: {', '.join(self.adapters)})")
-            v = self.adapters[fmu].variables.get(var)
-            if v is None:
-                raise ScenarioError(self._no_variable(fmu, var, key))
+            v = self._variable(signal, key)
             raise ScenarioError(f"{self._where(key)}: {signal!r} is not a Real output "
                                 f"(causality {v.causality!r}, type {v.type})")
         return self.slots[signal]
@@ -204,13 +209,7 @@ class Master:
         return f"{self._where(key)}: FMU {fmu!r} has no variable {var!r}{hint}"
 
     def _check_input(self, signal: str, key: str, drivers: dict, source: str) -> None:
-        fmu, _, var = signal.partition(".")
-        if fmu not in self.adapters:
-            raise ScenarioError(f"{self._where(key)}: unknown FMU {fmu!r} in {signal!r} "
-                                f"(FMUs: {', '.join(self.adapters)})")
-        v = self.adapters[fmu].variables.get(var)
-        if v is None:
-            raise ScenarioError(self._no_variable(fmu, var, key))
+        v = self._variable(signal, key)
         if v.causality != "input":
             raise ScenarioError(f"{self._where(key)}: {signal!r} has causality "
                                 f"{v.causality!r}, expected 'input'")

@@ -147,6 +147,9 @@ def _iterate(tasks: list[Task], workers: int, scheduler: str | None) -> Iterable
     else:
         import multiprocessing as mp
 
+        # one BLAS/OpenMP thread per worker process: K processes on K cores, no oversubscription
+        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ.setdefault(var, "1")
         with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as ex:
             futures = {ex.submit(execute_run, t): t for t in tasks}
             try:

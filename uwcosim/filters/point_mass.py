@@ -28,7 +28,7 @@ import scipy.fft as sfft
 from scipy import ndimage
 
 from uwcosim.errors import FilterDivergence
-from uwcosim.filters.base import Estimator, register, select
+from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.numerics import symmetrize
 from uwcosim.filters.projection_likelihood import GridLikelihood
 from uwcosim.filters.projection_model import ConditionalKalman, Partition
@@ -228,14 +228,8 @@ class PointMassFilter(Estimator):
         if self._after_update:
             self.diagnostics = {}
         self._after_update = True
-        part = self.part
-        if z is not None:
-            mask = part.use if mask is None else (np.asarray(mask, bool) & part.use)
-        idx = select(z, mask, self.model.nz)
-        rows = [] if idx is None else list(idx)
-        z = None if z is None else np.asarray(z, dtype=float)
-        self.kalman.update(self.x, z, [r for r in rows if r in part.rows_kalman], self.diagnostics)
-        rows_g = [r for r in rows if r in part.rows_grid]
+        z, rows_k, rows_g = self.part.split_rows(z, mask, self.model.nz)
+        self.kalman.update(self.x, z, rows_k, self.diagnostics)
         if rows_g:
             ll = self.likelihood.loglik(self.axes, z, rows_g, self.x)
             llmax = float(np.max(ll))
@@ -250,7 +244,7 @@ class PointMassFilter(Estimator):
         self._set_estimate()
         d = self.diagnostics
         d["n_points"] = float(self.values.size)
-        for i, name in enumerate(part.names):
+        for i, name in enumerate(self.part.names):
             d[f"interval_lo_{name}"] = float(self.axes[i][0])
             d[f"interval_hi_{name}"] = float(self.axes[i][-1])
 

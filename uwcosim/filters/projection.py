@@ -69,7 +69,7 @@ from scipy.sparse.linalg import expm_multiply
 
 from uwcosim.errors import FilterDivergence
 from uwcosim.filters import projection_ops as po
-from uwcosim.filters.base import Estimator, register, select
+from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.numerics import symmetrize
 from uwcosim.filters.projection_likelihood import GridLikelihood
 from uwcosim.filters.projection_model import ConditionalKalman, Partition
@@ -219,14 +219,7 @@ class ProjectionFilter(Estimator):
         if self._after_update:
             self.diagnostics = {}
         self._after_update = True
-        part = self.part
-        if z is not None:
-            mask = part.use if mask is None else (np.asarray(mask, bool) & part.use)
-        idx = select(z, mask, self.model.nz)
-        rows = [] if idx is None else list(idx)
-        z = None if z is None else np.asarray(z, dtype=float)
-        rows_k = [r for r in rows if r in part.rows_kalman]
-        rows_g = [r for r in rows if r in part.rows_grid]
+        z, rows_k, rows_g = self.part.split_rows(z, mask, self.model.nz)
         self.kalman.update(self.x, z, rows_k, self.diagnostics)
         prior, prior_basis = self.m, self.basis
         post, mean, cov = self._bayes(self.basis, z, rows_g, record=True)

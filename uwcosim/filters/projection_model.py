@@ -34,6 +34,7 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
+from uwcosim.filters.base import select
 from uwcosim.filters.numerics import joseph_update, kalman_gain, nis, symmetrize
 
 
@@ -196,6 +197,16 @@ class Partition:
         self._field_maps: dict[int, ca.Function] = {}
         self.drift_constant = not _depends(ca.vertcat(fp, ca.vec(Bp)), xp)
         self.diffusion_constant = not _depends(ca.vec(Bp), xp)
+
+    def split_rows(self, z, mask, nz: int):
+        """``(z, kalman rows, grid rows)`` of the measurement components available now."""
+        if z is not None:
+            mask = self.use if mask is None else (np.asarray(mask, bool) & self.use)
+        idx = select(z, mask, nz)
+        rows = [] if idx is None else list(idx)
+        z = None if z is None else np.asarray(z, dtype=float)
+        return (z, [r for r in rows if r in self.rows_kalman],
+                [r for r in rows if r in self.rows_grid])
 
     def _validate(self, f, Jf, B, h_dep, h_lin, x) -> None:
         p, k, names = self.p, self.k, self.model.state_names

@@ -176,3 +176,26 @@ def test_cli_run_writes_the_run_directory(tmp_path, project_fmus):
     assert r.returncode == 0, r.stderr
     assert "| ekf |" in r.stdout and str(tmp_path) in r.stdout
     assert (tmp_path / "log.parquet").is_file() and (tmp_path / "report.md").is_file()
+
+
+def test_sigint_to_the_cli_keeps_the_log(tmp_path, project_fmus):
+    """A real Ctrl-C (SIGINT) during a run: exit 130, one line, and a readable log."""
+    import signal
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "uwcosim", "run", str(SCENARIOS / "tan_terrain.toml"),
+         "--out", str(tmp_path), "--set", "log.chunk_steps=50"],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    log = tmp_path / "log.parquet"
+    deadline = time.monotonic() + 120
+    while not log.exists() and time.monotonic() < deadline:  # the run has started
+        time.sleep(0.2)
+    time.sleep(2.0)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "interrupted at t=" in err
+    rows = _rows(log)
+    assert 1 < rows < 5001
+    assert '"status": "interrupted"' in (tmp_path / "summary.json").read_text()

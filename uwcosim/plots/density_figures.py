@@ -4,11 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import numpy as np
 
 
 class DensitySnapshots:
@@ -38,6 +34,11 @@ class DensitySnapshots:
             self.snaps.append(snap)
 
     def draw(self, out: Path, states: list[str]) -> list[Path]:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
         paths = []
         for snap in self.snaps:
             names = list(snap["densities"])

@@ -59,6 +59,7 @@ class EstimatorBank:
             slots += list(sensor.slots)
             sensor_of += [sname] * len(sensor.outputs)
         self.meas_slots = np.array(slots, dtype=np.intp)
+        self._z_step = -1
         # sensors with sigma but no noise inputs: the master's stream adds the noise here
         n = master.n_steps + 1
         self.additive = np.zeros((n, len(slots)))
@@ -106,10 +107,15 @@ class EstimatorBank:
         raise ScenarioError(f"{self.where}: key '{msg.split(':')[0]}':{msg.split(':', 1)[1]}")
 
     def measurements(self, master) -> tuple[np.ndarray, np.ndarray]:
-        """``(z, received)`` at the master's current step; z is NaN where not received."""
-        rec = self.received[master.k]
-        z = np.where(rec, master.bus[self.meas_slots] + self.additive[master.k], np.nan)
-        return z, rec
+        """``(z, received)`` at the master's current step; z is NaN where not received.
+
+        Computed once per step (the estimators and the logger both read it)."""
+        if self._z_step != master.k:
+            rec = self.received[master.k]
+            self._z = np.where(rec, master.bus[self.meas_slots] + self.additive[master.k],
+                               np.nan), rec
+            self._z_step = master.k
+        return self._z
 
     def __call__(self, master) -> None:
         u = master.bus[self.control_slots]

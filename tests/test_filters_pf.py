@@ -142,3 +142,119 @@ def test_bad_settings_are_rejected():
                            ({"roughening": -1.0}, "roughening")):
         with pytest.raises(ScenarioError, match=word):
             ESTIMATORS.get("pf").from_settings(cv(), X0, P0, settings, where="s.toml")
+
+
+def test_standard_normals_are_standard_normal_and_reproducible():
+    from scipy.special import ndtr
+
+    from uwcosim.filters.particle import standard_normals
+
+    x = standard_normals(np.random.default_rng(11), (250001,)).ravel()  # odd size
+    assert x.shape == (250001,)
+    np.testing.assert_array_equal(x, standard_normals(np.random.default_rng(11), (250001,)))
+    n = x.size
+    assert abs(x.mean()) < 5 / np.sqrt(n)
+    assert abs(x.var() - 1.0) < 5 * np.sqrt(2 / n)
+    assert abs(np.mean(x**4) - 3.0) < 5 * np.sqrt(96 / n)
+    # Kolmogorov-Smirnov against the normal CDF (1% critical value 1.63 / sqrt(n))
+    xs = np.sort(x)
+    ks = np.max(np.abs(ndtr(xs) - np.arange(1, n + 1) / n))
+    assert ks < 1.63 / np.sqrt(n)
+    # the two halves of a block (cosine and sine of the same angles) are independent
+    h = n // 2
+    assert abs(np.corrcoef(x[:h], x[h:2 * h])[0, 1]) < 5 / np.sqrt(h)
+    assert abs(np.corrcoef(x[:h] ** 2, x[h:2 * h] ** 2)[0, 1]) < 5 / np.sqrt(h)
+
+
+def test_noise_blocks_make_runs_reproducible_whatever_is_read():
+    model = cv()
+    zs = simulate(model, 150, seed=3)  # crosses two noise blocks of 64 steps
+
+    def run(read: bool):
+        pf = ParticleFilter(model, X0, P0, n_particles=300, seed=8)
+        for k, z in enumerate(zs):
+            pf.predict(None, 1.0)
+            if read:
+                _ = pf.x, pf.P, pf.weights
+            pf.update(z if k % 3 else None)  # some steps without a measurement
+        return pf.particles.copy(), pf.x, pf.P
+
+    for a, b in zip(run(False), run(True)):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_systematic_counts_equal_the_search_definition():
+    from uwcosim.filters.particle import _search, systematic
+
+    rng = np.random.default_rng(2)
+    for n in (2, 7, 100, 1000):
+        for _ in range(50):
+            w = rng.random(n) ** 4
+            w[rng.random(n) < 0.3] = 0.0  # zero weights, also at the end
+            if w.sum() == 0.0:
+                w[0] = 1.0
+            w /= w.sum()
+            seed = int(rng.integers(1 << 30))
+            idx = systematic(w, np.random.default_rng(seed))
+            u = np.random.default_rng(seed).random()
+            ref = _search(w, (u + np.arange(n)) / n)
+            assert idx.size == n and np.all(w[idx] > 0.0)
+            np.testing.assert_array_equal(idx, ref)
+
+
+def test_ess_threshold_extremes():
+    model = cv()
+    zs = simulate(model, 5, seed=4)
+    never = ParticleFilter(model, X0, P0, n_particles=200, ess_threshold=0.0, seed=1)
+    always = ParticleFilter(model, X0, P0, n_particles=200, ess_threshold=1.0, seed=1)
+    for z in zs:
+        for pf in (never, always):
+            pf.predict(None, 1.0)
+            pf.update(z)
+        assert never.diagnostics["resampled"] == 0.0
+        assert always.diagnostics["resampled"] == 1.0
+    # a flat likelihood leaves equal weights: ESS = N up to round-off, still resampled at 1
+    flat = ParticleFilter(model, X0, P0, n_particles=200, ess_threshold=1.0, seed=1)
+    flat.model = type("Flat", (), {})()
+    flat.model.__dict__.update(nz=3, R=model.R, h_batch=lambda X: np.zeros((X.shape[0], 3)))
+    flat.update(np.zeros(3))
+    assert flat.diagnostics["ess"] == pytest.approx(200.0)
+    assert flat.diagnostics["resampled"] == 1.0
+
+
+def test_weights_survive_a_measurement_far_from_every_particle():
+    model = cv()
+    pf = ParticleFilter(model, X0, P0, n_particles=500, ess_threshold=0.0, seed=5)
+    pf.predict(None, 1.0)
+    pf.update(np.array([300.0, -200.0, 40.0]))  # log-likelihoods around -1e4: exp underflows
+    w = pf.weights
+    assert np.all(np.isfinite(w)) and w.sum() == pytest.approx(1.0)
+    np.testing.assert_allclose(np.exp(pf.logw), w, rtol=1e-12, atol=1e-300)
+    assert w.max() > 0.5  # the particle nearest the measurement takes the weight
+    assert np.all(np.isfinite(pf.x)) and np.all(np.isfinite(pf.P))
+
+
+def test_moments_are_the_weighted_mean_and_covariance():
+    model = cv()
+    pf = ParticleFilter(model, X0, P0, n_particles=400, ess_threshold=0.0, seed=6)
+    for z in simulate(model, 3, seed=6):
+        pf.predict(None, 1.0)
+        pf.update(z)
+    w = pf.weights
+    np.testing.assert_allclose(pf.x, np.average(pf.particles, axis=1, weights=w), rtol=1e-12)
+    ref = np.cov(pf.particles, aweights=w, bias=True)
+    np.testing.assert_allclose(pf.P, ref, rtol=1e-10, atol=1e-14)
+    np.testing.assert_array_equal(pf.P, pf.P.T)
+
+
+def test_model_noise_factor_is_a_factor_of_Q():
+    from uwcosim.models.bathymetry import synthetic_bathymetry
+    from uwcosim.models.fast_tan import accelerate
+    from uwcosim.models.tan import tan_model
+
+    fast = accelerate(tan_model([0.01, 0.02, 1e-6, 2e-6], 0.05, 2.0, synthetic_bathymetry(3)))
+    for u, dt in (([0.3, 0.001], 1.0), ([-2.0, 0.0], 0.5), ([0.3, 0.001], 1.0)):
+        L = fast.Q_factor(None, np.array(u), dt)
+        np.testing.assert_allclose(L @ L.T, fast.Q(None, np.array(u), dt), rtol=1e-12,
+                                   atol=1e-18)
+        assert not L.flags.writeable

@@ -97,11 +97,13 @@ class FastTerrain:
         if self._table is None:
             return self.bathy.depth(xy[0], xy[1])
         C, u, v = self._cells(xy)
-        q = C[3] * u  # Horner in u: q_j = sum_i c_ij u^i
+        uu = np.empty_like(C[0])  # u on every row: same-shape products cost half a broadcast
+        uu[:] = u
+        q = C[3] * uu  # Horner in u: q_j = sum_i c_ij u^i
         q += C[2]
-        q *= u
+        q *= uu
         q += C[1]
-        q *= u
+        q *= uu
         q += C[0]
         h = q[3] * v  # Horner in v
         h += q[2]
@@ -175,8 +177,10 @@ class FastTANModel:
         self.terrain = getattr(base, "terrain", None)
         self._fast_terrain = FastTerrain(self.terrain) if self.terrain is not None else None
         self._key: tuple | None = None
+        self._sqrt_dt: float | None = None
 
-    def _mats(self, u, dt: float):
+    def _mats(self, u, dt: float) -> list:
+        """``[F, G, b, Q, Q_factor]`` for ``(u, dt)``; the last two are filled on demand."""
         psi, a, dt = float(u[0]), float(u[1]), float(dt)
         key = (psi, a, dt)
         if key != self._key:
@@ -188,33 +192,51 @@ class FastTANModel:
                           [0.0, 0.0, dt, 0.0], [0.0, 0.0, 0.0, dt]])
             # b = [dt^2/2 Rot a e, dt a e], Rot e = [cos 2psi, sin 2psi]
             b = np.array([h2 * a * (c * c - s * s), h2 * a * 2.0 * s * c, dt * a * c, dt * a * s])
-            Q = (G * (self.q_psd / dt)) @ G.T  # Q = G diag(psd/dt) G'
-            self._key, self._cache = key, (F, G, b, 0.5 * (Q + Q.T))
+            self._key, self._cache = key, [F, G, b, None, None]
         return self._cache
 
+    def _Q(self, u, dt: float) -> np.ndarray:
+        m = self._mats(u, dt)
+        if m[3] is None:
+            G = m[1]
+            Q = (G * (self.q_psd / float(dt))) @ G.T  # Q = G diag(psd/dt) G'
+            m[3] = 0.5 * (Q + Q.T)
+        return m[3]
+
     def f(self, x, u, dt: float) -> np.ndarray:
-        F, _, b, _ = self._mats(u, dt)
+        F, _, b, _, _ = self._mats(u, dt)
         return F @ np.asarray(x, dtype=float) + b
 
     def f_batch(self, X: np.ndarray, u, dt: float) -> np.ndarray:
-        F, _, b, _ = self._mats(u, dt)
-        out = (F @ X.T).T  # column-major result: particle filters read states as columns
-        out += b
-        return out
+        F, _, b, _, _ = self._mats(u, dt)
+        out = F @ X.T
+        out += b[:, None]
+        return out.T  # column-major result: particle filters read states as columns
 
     def FG(self, x, u, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        F, G, _, _ = self._mats(u, dt)
+        F, G, _, _, _ = self._mats(u, dt)
         return F.copy(), G.copy()
 
     def F(self, x, u, dt: float) -> np.ndarray:
         return self._mats(u, dt)[0].copy()
 
     def Q(self, x, u, dt: float) -> np.ndarray:
-        return self._mats(u, dt)[3].copy()
+        return self._Q(u, dt).copy()
+
+    def Q_factor(self, x, u, dt: float) -> np.ndarray:
+        """``L = G diag(psd/dt)^(1/2)`` with ``L L' = Q`` (read-only, cached per ``(u, dt)``):
+        samples ``N(0, Q)`` without a Cholesky factorization."""
+        m = self._mats(u, dt)
+        if m[4] is None:
+            dt = float(dt)
+            if dt != self._sqrt_dt:  # sqrt(psd/dt), for the usual constant step
+                self._sqrt_dt, self._sqrt_psd = dt, np.sqrt(self.q_psd / dt)
+            m[4] = m[1] * self._sqrt_psd
+            m[4].flags.writeable = False
+        return m[4]
 
     def FQ(self, x, u, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        F, _, _, Q = self._mats(u, dt)
-        return F.copy(), Q.copy()
+        return self._mats(u, dt)[0].copy(), self._Q(u, dt).copy()
 
     def h(self, x) -> np.ndarray:
         x = np.asarray(x, dtype=float)

@@ -8,7 +8,12 @@ import pytest
 
 from uwcosim.errors import ScenarioError
 from uwcosim.filters.base import ESTIMATORS
-from uwcosim.filters.point_mass import PointMassFilter, gaussian_convolve, hellinger
+from uwcosim.filters.point_mass import (
+    PointMassFilter,
+    gaussian_convolve,
+    hellinger,
+    shift_blur,
+)
 from uwcosim.models.statespace import CasadiModel
 from uwcosim.models.tan import tan_model
 
@@ -50,6 +55,32 @@ def test_gaussian_convolve_matches_analytic():
     ref = np.exp(-0.5 * (Ci[0, 0] * X**2 + 2 * Ci[0, 1] * X * Y + Ci[1, 1] * Y**2))
     ref *= p.sum() / ref.sum()
     assert np.max(np.abs(out - ref)) < 1e-6 * ref.max()
+
+
+def test_shift_blur_is_spline_interpolation_and_exact_blur():
+    """The TAN prediction: with D = 0 it is the cubic spline of ndimage.map_coordinates at the
+    pulled-back points; with D it is the analytic convolution of a Gaussian."""
+    from scipy import ndimage
+
+    x = np.linspace(-8.0, 8.0, 101)
+    h = x[1] - x[0]
+    X, Y = np.meshgrid(x, x, indexing="ij")
+    C = np.array([[1.0, 0.3], [0.3, 2.0]])
+    Ci = np.linalg.inv(C)
+    p = np.exp(-0.5 * (Ci[0, 0] * X**2 + 2 * Ci[0, 1] * X * Y + Ci[1, 1] * Y**2))
+    coords = [np.linspace(3.3, 97.2, 101), np.linspace(-2.0, 99.0, 101)]  # grid units
+    ref = ndimage.map_coordinates(p, np.meshgrid(*coords, indexing="ij"), order=3,
+                                  mode="constant", cval=0.0)
+    out = shift_blur(p, [h, h], coords, np.zeros((2, 2)))
+    assert np.max(np.abs(out - ref)) < 1e-6
+    D = np.array([[0.05, -0.02], [-0.02, 0.03]])
+    out = shift_blur(p, [h, h], coords, D)
+    new = [x[0] + c * h for c in coords]
+    NX, NY = np.meshgrid(*new, indexing="ij")
+    Si = np.linalg.inv(C + D)
+    exact = np.exp(-0.5 * (Si[0, 0] * NX**2 + 2 * Si[0, 1] * NX * NY + Si[1, 1] * NY**2))
+    exact *= np.sqrt(np.linalg.det(C) / np.linalg.det(C + D))
+    assert np.max(np.abs(out - exact)) < 1e-4
 
 
 @pytest.mark.parametrize("drift", [0.0, 0.3])

@@ -23,15 +23,25 @@ The update multiplies by the likelihood on the grid (:class:`GridLikelihood`). S
 
 from __future__ import annotations
 
+import math
+from functools import lru_cache
+
 import numpy as np
 import scipy.fft as sfft
-from scipy import ndimage
+from scipy import ndimage, sparse
 
 from uwcosim.errors import FilterDivergence
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.numerics import symmetrize
 from uwcosim.filters.projection_likelihood import GridLikelihood
-from uwcosim.filters.projection_model import ConditionalKalman, Partition
+from uwcosim.filters.projection_model import ConditionalKalman, Partition, block_index
+
+_TAPS = np.arange(-1, 3)
+_POWERS = np.arange(4.0)
+# cubic B-spline weights from the powers of the fraction: w_a(f) = sum_i f^i _BSPLINE[i, a]
+_BSPLINE = np.array([[1, 4, 1, 0], [-3, 0, 3, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], float) / 6.0
+_SPLINE_MATRICES: dict[tuple[int, int], sparse.csr_matrix] = {}
+SPLINE_PAD = 7  # zero padding for the spline prefilter (its impulse response: 0.27^|k|)
 
 
 def hellinger(p: np.ndarray, q: np.ndarray) -> float:
@@ -45,28 +55,148 @@ def hellinger(p: np.ndarray, q: np.ndarray) -> float:
     return float(np.sqrt(max(0.0, 1.0 - bc)))
 
 
+@lru_cache(maxsize=32)
+def _unit_frequencies(shape: tuple[int, ...]) -> tuple[np.ndarray, ...]:
+    """Angular frequencies of a real FFT of ``shape`` at unit spacing, broadcastable (cached)."""
+    n = len(shape)
+    out = []
+    for d in range(n):
+        f = sfft.rfftfreq(shape[d]) if d == n - 1 else sfft.fftfreq(shape[d])
+        s = [1] * n
+        s[d] = f.size
+        out.append((2.0 * np.pi * f).reshape(s))
+    return tuple(out)
+
+
 def gaussian_convolve(values: np.ndarray, spacing, D: np.ndarray) -> np.ndarray:
     """Linear convolution of grid values with ``N(0, D)`` by FFT (zero-padded, same shape)."""
     n = values.ndim
+    D = np.asarray(D, dtype=float)
     sig = np.sqrt(np.maximum(np.diag(D), 0.0))
-    pads = [int(min(np.ceil(7.0 * sig[d] / spacing[d]) + 1, values.shape[d])) for d in range(n)]
-    shape = [sfft.next_fast_len(values.shape[d] + pads[d], real=True) for d in range(n)]
+    shape = tuple(
+        sfft.next_fast_len(values.shape[d] + int(min(np.ceil(7.0 * sig[d] / spacing[d]) + 1,
+                                                     values.shape[d])), real=True)
+        for d in range(n)
+    )
     X = sfft.rfftn(values, s=shape)
-    oms = []
-    for d in range(n):
-        freq = sfft.rfftfreq if d == n - 1 else sfft.fftfreq
-        f = freq(shape[d], spacing[d])
-        o = 2.0 * np.pi * f
-        s = [1] * n
-        s[d] = o.size
-        oms.append(o.reshape(s))
-    quad = sum(oms[r] * D[r, s] * oms[s] for r in range(n) for s in range(n))
-    out = sfft.irfftn(X * np.exp(-0.5 * quad), s=shape)
+    oms = [o / spacing[d] for d, o in enumerate(_unit_frequencies(shape))]
+    quad = 0.0
+    for r in range(n):
+        quad = quad + (0.5 * D[r, r]) * oms[r] * oms[r]
+        for s in range(r + 1, n):
+            quad = quad + D[r, s] * oms[r] * oms[s]
+    X *= np.exp(-quad)
+    out = sfft.irfftn(X, s=shape)
     return out[tuple(slice(0, values.shape[d]) for d in range(n))]
 
 
+@lru_cache(maxsize=32)
+def _inverse_bspline_factors(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """The 2-D :func:`_inverse_bspline_symbol` as its column and row factors."""
+    o0, o1 = _unit_frequencies(shape)
+    return 6.0 / (4.0 + 2.0 * np.cos(o0)), 6.0 / (4.0 + 2.0 * np.cos(o1))
+
+
+@lru_cache(maxsize=32)
+def _inverse_bspline_symbol(shape: tuple[int, ...]) -> np.ndarray:
+    """``1 / prod_d (4 + 2 cos w_d) / 6``: the cubic B-spline prefilter on a real FFT grid."""
+    out = 1.0
+    for o in _unit_frequencies(shape):
+        out = out * (6.0 / (4.0 + 2.0 * np.cos(o)))
+    return out
+
+
+def _spline_matrix(coords: np.ndarray, n: int, size: int) -> sparse.csr_matrix:
+    """Cubic B-spline evaluation at fractional ``coords`` from ``size`` periodic coefficients.
+
+    Rows are zero outside the sampled range ``[0, n - 1]``; the taps at ``-1`` and ``n`` wrap
+    into the (zero-padded) end of the coefficient array. The matrix is a cached buffer refilled
+    in place: valid until the next call with the same shape.
+    """
+    c = np.asarray(coords, dtype=float)
+    if c[0] >= 0.0 and c[-1] <= n - 1.0 and c[-1] >= c[0]:  # increasing, all inside
+        inside = None
+        i = c.astype(np.intp)
+    else:
+        inside = (c >= 0.0) & (c <= n - 1.0)
+        c = np.where(inside, c, 0.0)
+        i = np.floor(c).astype(np.intp)
+    f = c - i
+    w = (f[:, None] ** _POWERS) @ _BSPLINE  # the 4 cubic B-spline weights per row
+    if inside is not None:
+        w *= inside[:, None]
+    idx = i[:, None] + _TAPS
+    idx %= size
+    key = (c.size, size)
+    B = _SPLINE_MATRICES.get(key)
+    if B is None:  # the structure (4 entries per row) is fixed: build once, refill in place
+        indptr = np.arange(0, 4 * c.size + 1, 4)
+        B = sparse.csr_matrix((w.ravel(), idx.ravel(), indptr), shape=key)
+        if len(_SPLINE_MATRICES) > 64:
+            _SPLINE_MATRICES.clear()
+        _SPLINE_MATRICES[key] = B
+        return B
+    B.data[:] = w.ravel()
+    B.indices[:] = idx.ravel()
+    return B
+
+
+def shift_blur(values: np.ndarray, spacing, coords: list[np.ndarray], D: np.ndarray):
+    """Prediction of a drift independent of the grid: ``(p * N(0, D))`` at shifted points.
+
+    One zero-padded real FFT: the Gaussian ``exp(-w' D w / 2)`` and the cubic B-spline
+    prefilter are applied together, then the spline is evaluated at the fractional grid
+    coordinates ``coords`` (one array per axis, in units of the old spacing; zero outside the
+    old grid) by one sparse banded matrix per axis.
+    """
+    n = values.ndim
+    D = np.asarray(D, dtype=float)
+    sig = np.sqrt(np.maximum(np.diag(D), 0.0))
+    pads = [max(int(np.ceil(7.0 * sig[d] / spacing[d])) + 1, SPLINE_PAD) for d in range(n)]
+    shape = tuple(
+        sfft.next_fast_len(values.shape[d] + min(pads[d], values.shape[d]), real=True)
+        for d in range(n)
+    )
+    oms = [o / spacing[d] for d, o in enumerate(_unit_frequencies(shape))]
+    X = sfft.rfftn(values, s=shape)
+    if n == 2:  # diagonal factors as vectors, one full exp for the cross term
+        a, b = oms
+        kern = np.exp((-D[0, 1] * a) * b)
+        col, row = _inverse_bspline_factors(shape)
+        kern *= np.exp((-0.5 * D[0, 0]) * a * a) * col
+        kern *= np.exp((-0.5 * D[1, 1]) * b * b) * row
+        X *= kern
+        out = sfft.irfftn(X, s=shape)
+        out = _spline_matrix(coords[0], values.shape[0], shape[0]) @ out
+        B = _spline_matrix(coords[1], values.shape[1], shape[1])
+        return (B @ out.T).T
+    quad = 0.0
+    for r in range(n):
+        quad = quad + (0.5 * D[r, r]) * oms[r] * oms[r]
+        for s in range(r + 1, n):
+            quad = quad + D[r, s] * oms[r] * oms[s]
+    X *= np.exp(-quad) * _inverse_bspline_symbol(shape)
+    out = sfft.irfftn(X, s=shape)
+    for d in range(n):
+        B = _spline_matrix(coords[d], values.shape[d], shape[d])
+        moved = np.moveaxis(out, d, 0)
+        res = B @ moved.reshape(shape[d], -1)
+        out = np.moveaxis(res.reshape((B.shape[0],) + moved.shape[1:]), 0, d)
+    return out
+
+
 def _moments(axes, w):
+    """Mean and covariance of grid weights ``w`` (any positive scale) on the tensor grid."""
     n = len(axes)
+    if n == 2:  # the TAN position: two marginals and one bilinear form
+        m0 = w.sum(axis=1)
+        total = m0.sum()
+        m1 = w.sum(axis=0)
+        mean = np.array([m0 @ axes[0], m1 @ axes[1]]) / total
+        d0 = axes[0] - mean[0]
+        d1 = axes[1] - mean[1]
+        c01 = d0 @ w @ d1 / total
+        return mean, np.array([[m0 @ (d0 * d0) / total, c01], [c01, m1 @ (d1 * d1) / total]])
     w = w / w.sum()
     mean = np.empty(n)
     marg = []
@@ -109,6 +239,10 @@ class PointMassFilter(Estimator):
         if min(self.n_points) < 5 or not span > 0:
             raise ValueError("n_points must be >= 5 and span > 0")
         self.span = float(span)
+        self._unit = [np.linspace(-1.0, 1.0, m) for m in self.n_points]
+        self._ip, self._ik = block_index(p), block_index(self.part.k)
+        self._pp, self._kk = block_index(p, p), block_index(self.part.k, self.part.k)
+        self._keys = [(f"interval_lo_{m}", f"interval_hi_{m}") for m in self.part.names]
         mean, cov = self.x[p], self.P[np.ix_(p, p)]
         if np.any(np.diag(cov) <= 0):
             raise ValueError("P0 must have a positive variance for every gridded state")
@@ -125,35 +259,49 @@ class PointMassFilter(Estimator):
     def _grid(self, mean, cov) -> list[np.ndarray]:
         sig = np.sqrt(np.maximum(np.diag(cov), 0.0))
         half = np.maximum(self.span * sig, 1e-9 * np.maximum(1.0, np.abs(mean)))
-        return [np.linspace(mean[d] - half[d], mean[d] + half[d], self.n_points[d])
-                for d in range(len(mean))]
+        out = []
+        for d in range(len(mean)):
+            a = self._unit[d] * half[d]  # linspace(mean - half, mean + half, n)
+            a += mean[d]
+            out.append(a)
+        return out
+
+    @property
+    def axes(self) -> list[np.ndarray]:
+        return self._axes
+
+    @axes.setter
+    def axes(self, axes: list[np.ndarray]) -> None:
+        self._axes = axes
+        self._spacing = np.array([a[1] - a[0] for a in axes])
+        self._cell = float(np.prod(self._spacing))
 
     @property
     def spacing(self) -> np.ndarray:
-        return np.array([a[1] - a[0] for a in self.axes])
+        return self._spacing.copy()
 
     @property
     def cell(self) -> float:
-        return float(np.prod(self.spacing))
+        return self._cell
 
-    def _normalize(self) -> None:
-        self.values = np.maximum(self.values, 0.0)
-        mass = float(self.values.sum() * self.cell)
+    def _normalize(self, clip: bool = True) -> None:
+        if clip:
+            self.values = np.maximum(self.values, 0.0, out=self.values)
+        mass = float(self.values.sum() * self._cell)
         if not np.isfinite(mass) or mass <= 0:
             self.diverged = True
             raise FilterDivergence(f"{self.kind}: grid density lost its mass ({mass})")
         self.values /= mass
 
     def _set_estimate(self) -> None:
-        p, k = self.part.p, self.part.k
         x = self.x.copy()
         P = np.zeros_like(self.P)
-        x[p] = self._mean
-        P[np.ix_(p, p)] = self._cov
-        if k:
-            x[k] = self.kalman.mean
-            P[np.ix_(k, k)] = self.kalman.cov
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+        x[self._ip] = self._mean
+        P[self._pp] = self._cov
+        if self.part.k:
+            x[self._ik] = self.kalman.mean
+            P[self._kk] = self.kalman.cov
+        if not math.isfinite(float(x.sum() + P.sum())):
             self.diverged = True
             raise FilterDivergence(f"{self.kind}: non-finite estimate")
         self.x, self.P = x, symmetrize(P)
@@ -166,17 +314,18 @@ class PointMassFilter(Estimator):
         inc = self.kalman.increment(self.x, u, dt)
         if self.part.drift_constant:
             new = self._grid(self._mean + inc.d, self._cov + inc.D)
-            coords = [(new[d] - inc.d[d] - self.axes[d][0]) / self.spacing[d]
-                      for d in range(len(new))]
-            mesh = np.meshgrid(*coords, indexing="ij")
-            vals = ndimage.map_coordinates(self.values, mesh, order=3, mode="constant", cval=0.0)
-            spacing = np.array([a[1] - a[0] for a in new])
-            self.values = gaussian_convolve(np.maximum(vals, 0.0), spacing, inc.D)
+            old = self.spacing
+            coords = [(new[d] - inc.d[d] - self.axes[d][0]) / old[d] for d in range(len(new))]
+            vals = shift_blur(self.values, old, coords, inc.D)
+            self.values = np.maximum(vals, 0.0, out=vals)
             self.axes = new
+            self._normalize(clip=False)
+            # translation and Gaussian convolution: the moments propagate exactly
+            self._mean, self._cov = self._mean + inc.d, symmetrize(self._cov + inc.D)
         else:
             self._chapman_kolmogorov(u, dt, inc)
-        self._normalize()
-        self._mean, self._cov = _moments(self.axes, self.values)
+            self._normalize()
+            self._mean, self._cov = _moments(self.axes, self.values)
         self._set_estimate()
 
     def _chapman_kolmogorov(self, u, dt: float, inc) -> None:
@@ -231,12 +380,15 @@ class PointMassFilter(Estimator):
         z, rows_k, rows_g = self.part.split_rows(z, mask, self.model.nz)
         self.kalman.update(self.x, z, rows_k, self.diagnostics)
         if rows_g:
-            ll = self.likelihood.loglik(self.axes, z, rows_g, self.x)
-            llmax = float(np.max(ll))
-            post = self.values * np.exp(ll - llmax)
-            Z = float(post.sum() * self.cell)
+            post = self.likelihood.loglik(self.axes, z, rows_g, self.x)
+            llmax = float(post.max())
+            post -= llmax
+            np.exp(post, out=post)
+            post *= self.values
+            Z = float(post.sum() * self._cell)
             if np.isfinite(Z) and Z > 0:
-                self.values = post / Z
+                post /= Z
+                self.values = post
                 self.diagnostics["loglik"] = float(np.log(Z) + llmax)
             else:
                 self.diagnostics["update_skipped"] = 1.0
@@ -244,9 +396,9 @@ class PointMassFilter(Estimator):
         self._set_estimate()
         d = self.diagnostics
         d["n_points"] = float(self.values.size)
-        for i, name in enumerate(self.part.names):
-            d[f"interval_lo_{name}"] = float(self.axes[i][0])
-            d[f"interval_hi_{name}"] = float(self.axes[i][-1])
+        for (klo, khi), a in zip(self._keys, self.axes, strict=True):
+            d[klo] = float(a[0])
+            d[khi] = float(a[-1])
 
     # ------------------------------------------------------------------------------------------
     @property

@@ -58,24 +58,30 @@ Settings: ``K`` (highest harmonic per dimension, 10), ``k_sigma`` (4), ``states`
 states; default from the model structure), ``measurements``, ``grid_factor`` (3),
 ``positivity`` (``"auto"``), ``neg_limit`` (0.1), ``spectral_filter`` (0 = off, else the even
 order of an exponential filter), ``long_run`` (True), ``min_halfwidth`` (0),
-``resolution_inflation`` (1), ``refine`` (0.7; 1 = off).
+``resolution_inflation`` (1), ``refine`` (0.7; 1 = off), ``moment_match`` (True: after a
+threshold the series gets the grid posterior's mean and covariance back), ``gate`` (5 sigma;
+0 = off: an implausible measurement regrows the box, see :meth:`ProjectionFilter._regrow`).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from scipy import special
 from scipy.linalg import expm
 from scipy.sparse.linalg import expm_multiply
 
 from uwcosim.errors import FilterDivergence
 from uwcosim.filters import projection_ops as po
 from uwcosim.filters.base import Estimator, register
-from uwcosim.filters.numerics import symmetrize
+from uwcosim.filters.numerics import cholesky, symmetrize
 from uwcosim.filters.projection_likelihood import GridLikelihood
-from uwcosim.filters.projection_model import ConditionalKalman, Partition
+from uwcosim.filters.projection_model import ConditionalKalman, Partition, block_index
 
 POSITIVITY = ("auto", "none", "threshold", "clip", "product", "jackson")
 DENSE_EXPM_MAX = 1200  # basis size up to which exp(A dt) is formed densely
+REGROW = (2.0, 4.0, 8.0, 16.0)  # prior std inflations tried when the box holds no posterior
 
 
 
@@ -100,6 +106,8 @@ class ProjectionFilter(Estimator):
         resolution_inflation: float = 1.0,
         refine: float = 0.7,
         neg_limit: float = 0.1,
+        moment_match: bool = True,
+        gate: float = 5.0,
     ) -> None:
         super().__init__(model, x0, P0)
         if int(K) != K or K < 1:
@@ -115,12 +123,15 @@ class ProjectionFilter(Estimator):
         self.resolution_inflation = float(resolution_inflation)
         self.refine = float(refine)
         self.neg_limit = float(neg_limit)
+        self.moment_match = bool(moment_match)
+        self.gate = float(gate)
+        self._gate_ll: dict[tuple, float] = {}
         self.part = Partition(model, states, measurements)
         self.kalman = ConditionalKalman(model, self.part, self.x, self.P, long_run)
         self.likelihood = GridLikelihood(model, self.part)
         p = self.part.p
-        self._pp = np.ix_(p, p)
-        self._kk = np.ix_(self.part.k, self.part.k)
+        self._ip, self._ik = block_index(p), block_index(self.part.k)
+        self._pp, self._kk = block_index(p, p), block_index(self.part.k, self.part.k)
         self._keys = [(f"interval_lo_{n}", f"interval_hi_{n}") for n in self.part.names]
         M = po.fft_size(grid_factor * (2 * self.K + 1))
         if not self.part.drift_constant:
@@ -148,23 +159,24 @@ class ProjectionFilter(Estimator):
         return mean - half, 2.0 * half
 
     def _set_estimate(self) -> None:
-        p, k = self.part.p, self.part.k
         x = self.x.copy()
         P = np.zeros_like(self.P)
-        x[p] = self._mean
+        x[self._ip] = self._mean
         P[self._pp] = self._cov
-        if k:
-            x[k] = self.kalman.mean
+        if self.part.k:
+            x[self._ik] = self.kalman.mean
             P[self._kk] = self.kalman.cov
-        if not (np.isfinite(x).all() and np.isfinite(P).all()):
+        if not math.isfinite(float(x.sum() + P.sum())):
             self.diverged = True
             raise FilterDivergence(f"{self.kind}: non-finite estimate")
         self.x, self.P = x, P
 
     def _normalize(self) -> float:
-        self.m = po.hermitian(self.m)
-        mass = po.mass(self.m, self.basis)
-        if not np.isfinite(mass) or mass <= 0:
+        m = self.m
+        m += np.conj(m[(slice(None, None, -1),) * m.ndim])  # Hermitian part (times 2)
+        m *= 0.5
+        mass = po.mass(m, self.basis)
+        if not (math.isfinite(mass) and mass > 0):
             self.diverged = True
             raise FilterDivergence(f"{self.kind}: density lost its mass ({mass})")
         self.m /= mass  # eqs. 40, 44, 48
@@ -187,9 +199,11 @@ class ProjectionFilter(Estimator):
         inc = self.kalman.increment(self.x, u, dt)
         if part.drift_constant:
             # A diagonal: translation by the increment (moves the box) and diffusion decay
-            moved = self.basis.moved(self.basis.lo + inc.d, self.basis.length)
             new = self.basis.moved(*self._box(self._mean + inc.d, self._cov + inc.D))
-            self.m = po.reproject(self.m, moved, new) * po.diffusion_decay(new, inc.D)
+            mats = po.transfer_matrices(self.K, self.basis.lo + inc.d, self.basis.length,
+                                        new.lo, new.length)
+            self.m = po.contract(self.m, list(mats))
+            self.m *= po.diffusion_decay(new, inc.D)
         else:
             guess_mean = self._mean + inc.d
             Fpp = inc.F[np.ix_(part.p, part.p)]
@@ -208,9 +222,20 @@ class ProjectionFilter(Estimator):
                 mv = expm_multiply(A * dt, self.m.ravel())
             self.m = mv.reshape(self.m.shape)  # eq. 43
         self.basis = new
-        self.diagnostics["prior_mass"] = self._normalize()
         if part.drift_constant:  # translation and Gaussian convolution: moments are exact
-            self._mean, self._cov = self._mean + inc.d, symmetrize(self._cov + inc.D)
+            mean, cov = self._mean + inc.d, symmetrize(self._cov + inc.D)
+        else:
+            mean, cov = guess_mean, symmetrize(guess_cov)
+        mass = po.mass(self.m, new)
+        if not (math.isfinite(mass) and mass > 0):
+            # the signed series lost its mass on the new box: carry the Gaussian of the
+            # predicted moments on its own box
+            self.basis = new.moved(*self._box(mean, cov))
+            self.m = po.gaussian_coefficients(mean, cov, self.basis)
+            self.diagnostics["gaussian_fallback"] = 1.0
+        self.diagnostics["prior_mass"] = self._normalize()
+        if part.drift_constant or self.diagnostics.get("gaussian_fallback"):
+            self._mean, self._cov = mean, cov
         else:
             self._moments()
         self._set_estimate()
@@ -221,51 +246,128 @@ class ProjectionFilter(Estimator):
         self._after_update = True
         z, rows_k, rows_g = self.part.split_rows(z, mask, self.model.nz)
         self.kalman.update(self.x, z, rows_k, self.diagnostics)
+        diag = self.diagnostics
         prior, prior_basis = self.m, self.basis
-        post, mean, cov = self._bayes(self.basis, z, rows_g, record=True)
-        if rows_g and self.refine < 1.0 and post.sum() > 0:
+        post, mean, cov, ok = self._bayes(self.basis, z, rows_g, record=True)
+        if rows_g and not (ok and self._consistent(rows_g)):
+            post, mean, cov, ok = self._regrow(z, rows_g)
+        elif rows_g and self.refine < 1.0:
             # re-centre on the posterior (eq. 33 with the posterior moments) and, when the
             # posterior box is much narrower, redo the product on its finer grid
             lo, length = self._box(mean, cov)
             if np.any(length < self.refine * self.basis.length):
                 new = self.basis.moved(lo, np.minimum(length, self.basis.length))
                 self.m = po.reproject(prior, prior_basis, new)
-                post2, mean2, cov2 = self._bayes(new, z, rows_g, record=False)
-                if post2.sum() > 0 and np.all(np.isfinite(cov2)):
+                post2, mean2, cov2, ok2 = self._bayes(new, z, rows_g, record=False)
+                if ok2:
                     self.basis, post, mean, cov = new, post2, mean2, cov2
-                    self.diagnostics["refined"] = 1.0
+                    diag["refined"] = 1.0
                 else:
                     self.m = prior
-        cell = self.basis.cell()
-        total = float(post.sum() * cell)
-        if not (np.isfinite(total) and total > 0 and np.all(np.isfinite(mean))):
-            # nothing usable left on the grid: keep the prior
+        if not ok:
+            # last resort (no mass even on the widest box): keep the prior, say so
             self.m, self.basis = prior, prior_basis
-            self.diagnostics["update_skipped"] = 1.0
+            diag["update_skipped"] = 1.0
+            diag.pop("regrown", None)
             self._normalize()
             self._moments()
             self._set_estimate()
             self._report()
             return
-        self.m = po.from_grid(post / total, self.basis)  # eqs. 45, 47
+        cell = self.basis.cell()
+        self.m = po.from_grid(post, self.basis)  # eqs. 45, 47
+        self.m /= float(post.sum() * cell)
         if self.positivity == "jackson":
             self.m = self.m * po.jackson_factors(self.basis)
         if self._filter is not None:
             self.m = self.m * self._filter
         values = po.to_grid(self.m, self.basis)
         neg = float(-np.minimum(values, 0.0).sum() * cell)
-        self.diagnostics["neg_mass"] = neg
+        diag["neg_mass"] = neg
         mode = self.positivity
         if mode == "auto":
             mode = "threshold" if neg > self.neg_limit else "none"
-            self.diagnostics["positivity_applied"] = float(mode == "threshold")
+            diag["positivity_applied"] = float(mode == "threshold")
         if mode in ("threshold", "clip") and neg > 0:
             values = self._positive(values, mode)
-            self.m = po.from_grid(values / (values.sum() * cell), self.basis)
+            kept = float(values.sum() * cell)
+            if np.isfinite(kept) and kept > 0:
+                self.m = po.from_grid(values / kept, self.basis)
+                if self.moment_match:
+                    self.m = self._match_moments(self.m, mean, cov)
+            else:
+                # the truncated series is all ripple (the posterior is much narrower than the
+                # basis resolves on this box): carry the moment-matched Gaussian of the grid
+                # posterior on its own box instead of nothing
+                self.basis = self.basis.moved(*self._box(mean, cov))
+                self.m = po.gaussian_coefficients(mean, cov, self.basis)
+                diag["gaussian_fallback"] = 1.0
         self._normalize()
         self._mean, self._cov = mean, cov
         self._set_estimate()
         self._report()
+
+    def _match_moments(self, m: np.ndarray, mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
+        """Give the repaired series the moments of the grid posterior (exact operations).
+
+        Thresholding removes the tails and the low modes with the ripples, so the carried
+        density becomes narrower than the posterior whose moments are reported: the filter
+        turns overconfident and, on an elongated posterior, loses the track. The series is
+        translated by the mean difference and blurred by the covariance deficit (its positive
+        semi-definite part): ``m_q exp(-j w.delta - w' Delta w / 2)``.
+        """
+        mu_s, cov_s, _ = po.moments(m, self.basis)
+        if not (np.all(np.isfinite(mu_s)) and np.all(np.isfinite(cov_s))):
+            return m
+        lam, vec = np.linalg.eigh(symmetrize(cov - cov_s))
+        deficit = (vec * np.maximum(lam, 0.0)) @ vec.T
+        oms = np.meshgrid(*[self.basis.omega(d) for d in range(self.basis.n)], indexing="ij")
+        phase = sum(o * dv for o, dv in zip(oms, mean - mu_s, strict=True))
+        self.diagnostics["moment_matched"] = 1.0
+        return m * np.exp(-1j * phase) * po.diffusion_decay(self.basis, deficit)
+
+    def _regrow(self, z, rows_g):
+        """Bayes product on wider boxes when the prior box holds no posterior mass.
+
+        The measurement is then inconsistent with the prior (its box misses the likelihood):
+        the prior is replaced by the Gaussian of its moments with the covariance inflated by
+        ``g^2`` (``g`` in :data:`REGROW`) on the box ``mean -+ k_sigma g sigma``, and the product
+        redone there. Diagnostic ``regrown`` = the ``g`` that worked.
+        """
+        mean0, cov0 = self._mean, self._cov
+        for g in REGROW:
+            cov = cov0 * g**2
+            basis = self.basis.moved(*self._box(mean0, cov))
+            self.m = po.gaussian_coefficients(mean0, cov, basis)
+            out = self._bayes(basis, z, rows_g, record=False)
+            if out[3] and self._consistent(rows_g):
+                self.basis = basis
+                self.diagnostics["regrown"] = float(g)
+                return out
+        self.diagnostics["inconsistent"] = 1.0
+        return None, None, None, False
+
+    def _consistent(self, rows_g) -> bool:
+        """Whether the measurement is plausible under the prior (the gate, ``gate`` sigma).
+
+        ``loglik`` is the log of the predictive density ``integral p(x) N(z; h(x), R) dx``
+        (up to the constant of ``R``); relative to a perfect match it is below
+        ``-chi2_quantile / 2`` when the prior puts no mass where ``z`` could have come from
+        (probability ``P(|N(0,1)| > gate)`` for a consistent prior).
+        """
+        if not self.gate:
+            return True
+        key = tuple(rows_g)
+        thr = self._gate_ll.get(key)
+        if thr is None:
+            m = len(rows_g)
+            p_tail = float(special.erfc(self.gate / np.sqrt(2.0)))
+            thr = -0.5 * float(special.chdtri(m, p_tail))
+            if self.resolution_inflation:  # loglik then includes -log det(R + inflation) / 2
+                thr -= 0.5 * float(np.linalg.slogdet(self.model.R[np.ix_(key, key)])[1])
+            self._gate_ll[key] = thr
+        ll = self.diagnostics.get("loglik")
+        return ll is not None and ll >= thr
 
     def _positive(self, values: np.ndarray, mode: str | None = None) -> np.ndarray:
         """Remove the truncation's negative lobes from grid values.
@@ -297,16 +399,19 @@ class ProjectionFilter(Estimator):
             llmax = float(np.max(ll))
             post = values * np.exp(ll - llmax)
             Z = float(post.sum() * cell)  # E' m- (eq. 46)
-            if np.isfinite(Z) and Z > 0:
-                self.diagnostics["loglik"] = float(np.log(Z) + llmax)
-                self.diagnostics.pop("update_skipped", None)
-            else:
-                self.diagnostics["update_skipped"] = 1.0
-                post = values
-        if not post.sum() > 0:  # a signed prior can lose its mass: fall back to its clip
+            if not (np.isfinite(Z) and Z > 0):  # a signed prior: try its clip
+                post = np.maximum(post, 0.0)
+                Z = float(post.sum() * cell)
+            if not (np.isfinite(Z) and Z > 0):
+                return values, None, None, False  # no posterior mass on this box
+            self.diagnostics["loglik"] = float(np.log(Z) + llmax)
+        elif not post.sum() > 0:  # a signed prior can lose its mass: fall back to its clip
             post = np.maximum(post, 0.0)
+            if not post.sum() > 0:
+                return values, None, None, False
         mean, cov = self._grid_moments(post, basis)
-        return post, mean, cov
+        ok = math.isfinite(float(mean.sum() + cov.sum()))
+        return post, mean, cov, ok
 
     @staticmethod
     def _grid_moments(post: np.ndarray, basis):
@@ -316,16 +421,14 @@ class ProjectionFilter(Estimator):
         """
         floor = (basis.length / basis.M) ** 2 / 12.0
         mean, cov = po.grid_moments(post, basis)
-        ok = np.all(np.isfinite(cov)) and np.all(np.diag(cov) > floor)
-        if ok:
-            try:
-                np.linalg.cholesky(cov)
-            except np.linalg.LinAlgError:
-                ok = False
-        if not ok:
+        var = np.diag(cov)
+        ok = math.isfinite(float(cov.sum())) and bool(np.all(var > floor))
+        if not (ok and cholesky(cov) is not None):
             mean, cov = po.grid_moments(np.maximum(post, 0.0), basis)
-        cov = symmetrize(cov)
-        d = np.sqrt(np.maximum(np.diag(cov), floor) / np.maximum(np.diag(cov), 1e-300))
+            var = np.diag(cov)
+        if np.all(var >= floor):
+            return mean, cov
+        d = np.sqrt(np.maximum(var, floor) / np.maximum(var, 1e-300))
         return mean, cov * np.outer(d, d)
 
     def _report(self) -> None:

@@ -29,13 +29,17 @@ exact).
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
+from scipy.linalg import lapack
 
 from uwcosim.filters.base import select
-from uwcosim.filters.numerics import joseph_update, kalman_gain, nis, symmetrize
+from uwcosim.filters.numerics import cholesky, kalman_gain, nis, symmetrize
+
+_gesv = lapack.dgesv
 
 
 class FastFunction:
@@ -167,6 +171,7 @@ class Partition:
                 "are supported (set 'states' to the nonlinear ones)"
             )
         self._validate(f, Jf, B, h_dep, h_lin, x)
+        self._splits: dict[bytes, tuple[list[int], list[int]]] = {}
         self.rows_grid = [r for r in range(model.nz) if self.use[r] and h_dep[r, p].any()]
         self.rows_kalman = [r for r in range(model.nz) if self.use[r] and r not in self.rows_grid]
         # one-step map, its Jacobian and the discrete noise covariance, in one fast call
@@ -203,10 +208,17 @@ class Partition:
         if z is not None:
             mask = self.use if mask is None else (np.asarray(mask, bool) & self.use)
         idx = select(z, mask, nz)
-        rows = [] if idx is None else list(idx)
         z = None if z is None else np.asarray(z, dtype=float)
-        return (z, [r for r in rows if r in self.rows_kalman],
-                [r for r in rows if r in self.rows_grid])
+        if idx is None:
+            return z, [], []
+        key = idx.tobytes()
+        split = self._splits.get(key)
+        if split is None:
+            rows = [int(r) for r in idx]
+            split = ([r for r in rows if r in self.rows_kalman],
+                     [r for r in rows if r in self.rows_grid])
+            self._splits[key] = split
+        return z, list(split[0]), list(split[1])
 
     def _validate(self, f, Jf, B, h_dep, h_lin, x) -> None:
         p, k, names = self.p, self.k, self.model.state_names
@@ -315,6 +327,23 @@ def _window(a: np.ndarray, taper: float) -> tuple[np.ndarray, np.ndarray]:
     return w, dw * dtdx * ((t > 0) & (t < 1))
 
 
+def block_index(rows: list[int], cols: list[int] | None = None):
+    """Index of ``rows`` (and ``cols``): basic slices when contiguous (cheaper than fancy
+    indexing on the small matrices of every step), else integer arrays / ``np.ix_``."""
+
+    def one(idx):
+        if idx and list(idx) == list(range(idx[0], idx[0] + len(idx))):
+            return slice(idx[0], idx[0] + len(idx))
+        return np.asarray(idx, dtype=np.intp)
+
+    if cols is None:
+        return one(rows)
+    r, c = one(rows), one(cols)
+    if isinstance(r, slice) and isinstance(c, slice):
+        return r, c
+    return np.ix_(rows, cols)
+
+
 class Increment(NamedTuple):
     """Increment of the gridded block over a step, at the mean of the other states."""
 
@@ -344,11 +373,14 @@ class ConditionalKalman:
         self.cov = np.asarray(P0, float)[np.ix_(self.k, self.k)].copy()
         self.long_run = bool(long_run)
         self._F = np.eye(len(self.k))
+        self._eye = np.eye(len(self.k))
         self._phi = None
         self.step = part.step
-        self._pp = np.ix_(self.p, self.p)
-        self._pk = np.ix_(self.p, self.k)
-        self._kk = np.ix_(self.k, self.k)
+        ip, ik = block_index(self.p), block_index(self.k)
+        self._ip, self._ik = ip, ik
+        self._pp = block_index(self.p, self.p)
+        self._pk = block_index(self.p, self.k)
+        self._kk = block_index(self.k, self.k)
         if self.rows:
             self.H = part.H_kalman[:, self.k]
             self.c = part.c_kalman
@@ -358,17 +390,14 @@ class ConditionalKalman:
         P = self.cov
         if not self.long_run or self._phi is None or not len(self.k):
             return P
-        I_phi = np.eye(len(self.k)) - self._phi
-        try:
-            X = np.linalg.solve(I_phi, P)
-        except np.linalg.LinAlgError:
+        _, _, X, info = _gesv(self._eye - self._phi, P)
+        if info != 0:
             return P
-        S = symmetrize(X + X.T - P)
-        if not np.all(np.isfinite(S)) or np.trace(S) > 1e6 * max(np.trace(P), 1e-300):
+        S = X + X.T - P
+        S = 0.5 * (S + S.T)
+        if not math.isfinite(float(S.sum())) or np.trace(S) > 1e6 * max(np.trace(P), 1e-300):
             return P  # (nearly) unit eigenvalue: no DVL information, random-walk error
-        try:
-            np.linalg.cholesky(S)
-        except np.linalg.LinAlgError:
+        if cholesky(S) is None:
             return P
         return S
 
@@ -376,18 +405,22 @@ class ConditionalKalman:
         """Predict the ``k`` block; return the gridded block's increment over the step."""
         fx, F, Q = self.step(x_full, u, dt)
         fx = fx.reshape(-1)
-        p, k = self.p, self.k
-        d = fx[p] - x_full[p]
+        k = self.k
+        d = fx[self._ip] - x_full[self._ip]
         D = Q[self._pp]
-        Dk = np.zeros_like(D)
         if k:
             Fpk = F[self._pk]
-            Dk = symmetrize(Fpk @ self.long_run_cov() @ Fpk.T)
+            Dk = Fpk @ self.long_run_cov() @ Fpk.T
+            Dk = 0.5 * (Dk + Dk.T)
             Fkk = F[self._kk]
-            self.mean = fx[k]
-            self.cov = symmetrize(Fkk @ self.cov @ Fkk.T + Q[self._kk])
+            self.mean = fx[self._ik]
+            C = Fkk @ self.cov @ Fkk.T + Q[self._kk]
+            self.cov = 0.5 * (C + C.T)
             self._F = Fkk
-        return Increment(d, symmetrize(D + Dk), Dk, F)
+            D = D + Dk
+        else:
+            Dk = np.zeros_like(D)
+        return Increment(d, 0.5 * (D + D.T), Dk, F)
 
     def update(self, x_full, z, rows, diagnostics: dict) -> None:
         """Kalman update of the ``k`` block with the measurement rows ``rows``."""
@@ -401,14 +434,11 @@ class ConditionalKalman:
         y = z[rows] - (H @ self.mean + c)  # rows affine in x_k, independent of x_p
         PHt = self.cov @ H.T
         S = symmetrize(H @ PHt + R)
-        try:
-            np.linalg.cholesky(S)
-            K = np.linalg.solve(S, PHt.T).T  # K = P H' S^-1 (S small and PD)
-            diagnostics["nis"] = float(y @ np.linalg.solve(S, y))
-        except np.linalg.LinAlgError:
-            K, cho = kalman_gain(PHt, S, diagnostics)
-            diagnostics["nis"] = nis(y, cho)
+        K, cho = kalman_gain(PHt, S, diagnostics)  # K = P H' S^-1 (LAPACK Cholesky)
+        diagnostics["nis"] = nis(y, cho)
         self.mean = self.mean + K @ y
-        self.cov = joseph_update(self.cov, K, H, R)
-        self._phi = (np.eye(len(self.k)) - K @ H) @ self._F
+        IKH = self._eye - K @ H
+        C = IKH @ self.cov @ IKH.T + K @ R @ K.T  # Joseph form
+        self.cov = 0.5 * (C + C.T)
+        self._phi = IKH @ self._F
         diagnostics["nis_dof"] = float(len(rows))

@@ -17,6 +17,7 @@ truncated series instead of quadratures.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -91,8 +92,18 @@ class SpectralBasis:
         return ax
 
     def cell(self) -> float:
-        """Quadrature weight (cell volume) ``prod L_d / M``."""
-        return float(np.prod(self.length / self.M))
+        """Quadrature weight (cell volume) ``prod L_d / M`` (cached)."""
+        c = self._cache.get("cell")
+        if c is None:
+            c = self._cache["cell"] = float(np.prod(self.length / self.M))
+        return c
+
+    def sqrt_volume(self) -> float:
+        """``sqrt(prod L_d)`` (cached): the mass of the series is ``sqrt_volume * m_0``."""
+        v = self._cache.get("sqrt_volume")
+        if v is None:
+            v = self._cache["sqrt_volume"] = math.sqrt(float(np.prod(self.length)))
+        return v
 
     def moved(self, lo, length) -> SpectralBasis:
         return SpectralBasis(lo, length, self.K, self.M)
@@ -109,24 +120,49 @@ def _half_index(K: int, M: int, n: int) -> tuple:
     return np.ix_(*([idx] * (n - 1) + [np.arange(K + 1)]))
 
 
+@lru_cache(maxsize=16)
+def _dft_matrices(K: int, M: int) -> tuple[np.ndarray, ...]:
+    """``E[n, q] = exp(j 2 pi n q / M)`` on the quadrature grid (independent of the box), its
+    real and imaginary parts, their transposes and ``conj(E)``."""
+    E = np.exp(2j * np.pi * np.outer(np.arange(M), np.arange(-K, K + 1)) / M)
+    Ec, Es = E.real.copy(), E.imag.copy()
+    for a in (E, Ec, Es):
+        a.setflags(write=False)
+    return Ec, Es, E, Ec.T.copy(), Es.T.copy(), E.conj()
+
+
 def to_grid(m: np.ndarray, basis: SpectralBasis) -> np.ndarray:
     """Values of the (real) series on the quadrature grid, shape ``(M,)*n`` (indexing 'ij')."""
     K, M, n = basis.K, basis.M, basis.n
+    if n == 2:  # two small matrix products beat the zero-padded FFT: Re(E m E')
+        Ec, Es, E = _dft_matrices(K, M)[:3]
+        A = m @ E.T
+        out = Ec @ A.real
+        out -= Es @ A.imag
+        out *= 1.0 / math.sqrt(basis.length[0] * basis.length[1])
+        return out
     half = np.zeros((M,) * (n - 1) + (M // 2 + 1,), dtype=complex)
-    half[_half_index(K, M, n)] = m[..., K:]
     scale = M**n / np.sqrt(np.prod(basis.length))
+    half[_half_index(K, M, n)] = m[..., K:]
     return sfft.irfftn(half, s=(M,) * n) * scale
 
 
 def from_grid(values: np.ndarray, basis: SpectralBasis) -> np.ndarray:
     """Coefficients ``<g, phi_q>`` of a real grid function by FFT quadrature (eq. 45)."""
     K, M, n = basis.K, basis.M, basis.n
-    X = sfft.rfftn(values)
+    scale = np.sqrt(np.prod(basis.length)) / M**n
     m = np.empty(basis.shape, dtype=complex)
+    if n == 2:  # E^H g conj(E): two small matrix products (see to_grid)
+        _, _, _, EcT, EsT, Econj = _dft_matrices(K, M)
+        A = EcT @ values - 1j * (EsT @ values)
+        out = A @ Econj
+        out *= scale
+        return out
+    X = sfft.rfftn(values)
     m[..., K:] = X[_half_index(K, M, n)]
     # Hermitian completion: m_{-q} = conj(m_q)
     m[..., :K] = np.conj(np.flip(m[..., K + 1:], axis=tuple(range(n))))
-    return m * (np.sqrt(np.prod(basis.length)) / M**n)
+    return m * scale
 
 
 def hermitian(m: np.ndarray) -> np.ndarray:
@@ -178,21 +214,38 @@ def transfer_matrix(K: int, lo: float, length: float, lo2: float, length2: float
     # phase om_q (a - lo) - om2_q' (a - lo2) + delta w / 2 = om_q c1 - om2_q' c2 (separable)
     left = np.exp(-1j * om2 * (a - lo2 + 0.5 * w))
     right = np.exp(1j * om * (a - lo + 0.5 * w))
-    arg = 0.5 * w * (om[None, :] - om2[:, None])
-    small = np.abs(arg) < 1e-8
-    sinc = np.sin(arg) / np.where(small, 1.0, arg)
-    sinc[small] = 1.0
+    # sin(a) / a with a = (om_q - om2_q') w / 2 (np.sinc(t) = sin(pi t) / (pi t))
+    sinc = np.sinc(np.subtract.outer(om2, om) * (-0.5 * w / np.pi))
     # int over the overlap of exp(j delta s) = w sinc(delta w / 2) exp(j delta w / 2)
-    return (left[:, None] * right[None, :]) * sinc * (w / np.sqrt(length * length2))
+    sinc *= w / np.sqrt(length * length2)
+    return np.multiply.outer(left, right) * sinc
+
+
+def transfer_matrices(K: int, lo, length, lo2, length2) -> np.ndarray:
+    """:func:`transfer_matrix` of every dimension at once, shape ``(n, 2K+1, 2K+1)``."""
+    lo, length = np.asarray(lo, float), np.asarray(length, float)
+    lo2, length2 = np.asarray(lo2, float), np.asarray(length2, float)
+    a = np.maximum(lo, lo2)
+    w = np.minimum(lo + length, lo2 + length2) - a
+    q = _frequencies(K)
+    om = TWO_PI * q / length[:, None]
+    om2 = TWO_PI * q / length2[:, None]
+    left = np.exp((-1j * (a - lo2 + 0.5 * w))[:, None] * om2)
+    right = np.exp((1j * (a - lo + 0.5 * w))[:, None] * om)
+    sinc = np.sinc((om2[:, :, None] - om[:, None, :]) * (-0.5 * w / np.pi)[:, None, None])
+    sinc *= (np.maximum(w, 0.0) / np.sqrt(length * length2))[:, None, None]
+    return left[:, :, None] * right[:, None, :] * sinc
+
+
+@lru_cache(maxsize=16)
+def _frequencies(K: int) -> np.ndarray:
+    return np.arange(-K, K + 1, dtype=float)
 
 
 def reproject(m: np.ndarray, basis: SpectralBasis, new: SpectralBasis) -> np.ndarray:
     """Coefficients on ``new`` of the series ``m`` on ``basis``."""
-    mats = [
-        transfer_matrix(basis.K, basis.lo[d], basis.length[d], new.lo[d], new.length[d])
-        for d in range(basis.n)
-    ]
-    return contract(m, mats)
+    mats = transfer_matrices(basis.K, basis.lo, basis.length, new.lo, new.length)
+    return contract(m, list(mats))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -211,7 +264,7 @@ def gaussian_coefficients(mean, cov, basis: SpectralBasis) -> np.ndarray:
 
 def mass(m: np.ndarray, basis: SpectralBasis) -> float:
     """``integral of p = sqrt(prod L) m_0`` (eqs. 39-40)."""
-    return float(np.sqrt(np.prod(basis.length)) * m[(basis.K,) * basis.n].real)
+    return basis.sqrt_volume() * float(m[(basis.K,) * basis.n].real)
 
 
 def _moment_vectors(basis: SpectralBasis, d: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -262,6 +315,15 @@ def grid_moments(values: np.ndarray, basis: SpectralBasis) -> tuple[np.ndarray, 
     """Mean and covariance of nonnegative grid values (trapezoid quadrature, eqs. 50-51)."""
     axes = basis.axes()
     n = basis.n
+    if n == 2:  # two marginals and one bilinear form
+        m0 = values.sum(axis=1)
+        total = m0.sum()
+        m1 = values.sum(axis=0)
+        mu = np.array([m0 @ axes[0], m1 @ axes[1]]) / total
+        d0 = axes[0] - mu[0]
+        d1 = axes[1] - mu[1]
+        c01 = d0 @ values @ d1 / total
+        return mu, np.array([[m0 @ (d0 * d0) / total, c01], [c01, m1 @ (d1 * d1) / total]])
     w = values / values.sum()
     marg = [w.sum(axis=tuple(i for i in range(n) if i != d)) for d in range(n)]
     mu = np.array([marg[d] @ axes[d] for d in range(n)])
@@ -341,6 +403,10 @@ def diffusion_decay(basis: SpectralBasis, D: np.ndarray) -> np.ndarray:
     """``exp(-w' D w / 2)`` on the coefficients: a Gaussian convolution of covariance ``D``."""
     n = basis.n
     om = [basis.omega(d) for d in range(n)]
+    if n == 2:
+        a, b = om[0][:, None], om[1][None, :]
+        quad = (0.5 * D[0, 0]) * (a * a) + (0.5 * D[1, 1]) * (b * b) + (D[0, 1] * a) * b
+        return np.exp(-quad)
     quad = np.zeros(basis.shape)
     for r in range(n):
         for s in range(n):

@@ -23,7 +23,6 @@ The update multiplies by the likelihood on the grid (:class:`GridLikelihood`). S
 
 from __future__ import annotations
 
-import math
 from functools import lru_cache
 
 import numpy as np
@@ -34,7 +33,12 @@ from uwcosim.errors import FilterDivergence
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.numerics import symmetrize
 from uwcosim.filters.projection_likelihood import GridLikelihood
-from uwcosim.filters.projection_model import ConditionalKalman, Partition, block_index
+from uwcosim.filters.projection_model import (
+    ConditionalKalman,
+    Partition,
+    assemble_estimate,
+    block_index,
+)
 
 _TAPS = np.arange(-1, 3)
 _POWERS = np.arange(4.0)
@@ -294,17 +298,7 @@ class PointMassFilter(Estimator):
         self.values /= mass
 
     def _set_estimate(self) -> None:
-        x = self.x.copy()
-        P = np.zeros_like(self.P)
-        x[self._ip] = self._mean
-        P[self._pp] = self._cov
-        if self.part.k:
-            x[self._ik] = self.kalman.mean
-            P[self._kk] = self.kalman.cov
-        if not math.isfinite(float(x.sum() + P.sum())):
-            self.diverged = True
-            raise FilterDivergence(f"{self.kind}: non-finite estimate")
-        self.x, self.P = x, symmetrize(P)
+        self.x, self.P = assemble_estimate(self)
 
     # ------------------------------------------------------------------------------------------
     def predict(self, u, dt: float) -> None:

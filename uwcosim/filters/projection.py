@@ -77,7 +77,12 @@ from uwcosim.filters import projection_ops as po
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.numerics import cholesky, symmetrize
 from uwcosim.filters.projection_likelihood import GridLikelihood
-from uwcosim.filters.projection_model import ConditionalKalman, Partition, block_index
+from uwcosim.filters.projection_model import (
+    ConditionalKalman,
+    Partition,
+    assemble_estimate,
+    block_index,
+)
 
 POSITIVITY = ("auto", "none", "threshold", "clip", "product", "jackson")
 DENSE_EXPM_MAX = 1200  # basis size up to which exp(A dt) is formed densely
@@ -159,17 +164,7 @@ class ProjectionFilter(Estimator):
         return mean - half, 2.0 * half
 
     def _set_estimate(self) -> None:
-        x = self.x.copy()
-        P = np.zeros_like(self.P)
-        x[self._ip] = self._mean
-        P[self._pp] = self._cov
-        if self.part.k:
-            x[self._ik] = self.kalman.mean
-            P[self._kk] = self.kalman.cov
-        if not math.isfinite(float(x.sum() + P.sum())):
-            self.diverged = True
-            raise FilterDivergence(f"{self.kind}: non-finite estimate")
-        self.x, self.P = x, P
+        self.x, self.P = assemble_estimate(self)
 
     def _normalize(self) -> float:
         m = self.m

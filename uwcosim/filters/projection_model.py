@@ -36,6 +36,7 @@ import casadi as ca
 import numpy as np
 from scipy.linalg import lapack
 
+from uwcosim.errors import FilterDivergence
 from uwcosim.filters.base import select
 from uwcosim.filters.numerics import cholesky, kalman_gain, nis, symmetrize
 
@@ -442,3 +443,19 @@ class ConditionalKalman:
         self.cov = 0.5 * (C + C.T)
         self._phi = IKH @ self._F
         diagnostics["nis_dof"] = float(len(rows))
+
+
+def assemble_estimate(est) -> tuple[np.ndarray, np.ndarray]:
+    """``(x, P)`` of a partitioned filter (grid or projection) from its gridded block
+    (``_mean``, ``_cov``) and its conditional Kalman block; FilterDivergence if non-finite."""
+    x = est.x.copy()
+    P = np.zeros_like(est.P)
+    x[est._ip] = est._mean
+    P[est._pp] = est._cov
+    if est.part.k:
+        x[est._ik] = est.kalman.mean
+        P[est._kk] = est.kalman.cov
+    if not np.isfinite(x.sum() + P.sum()):
+        est.diverged = True
+        raise FilterDivergence(f"{est.kind}: non-finite estimate")
+    return x, symmetrize(P)

@@ -31,6 +31,7 @@ from uwcosim.filters import particle, sigma_point, variational  # noqa: E402, F4
 from uwcosim.filters.base import ESTIMATORS  # noqa: E402
 from uwcosim.models.bathymetry import synthetic_bathymetry  # noqa: E402
 from uwcosim.models.fast_tan import accelerate  # noqa: E402
+from uwcosim.models.statespace import simulate as simulate_model  # noqa: E402
 from uwcosim.models.tan import tan_model  # noqa: E402
 
 STD0 = np.array([30.0, 30.0, 0.05, 0.05])
@@ -43,14 +44,8 @@ def controls(k: int) -> np.ndarray:
 
 def simulate(model, steps: int, seed: int = 1):
     rng = np.random.default_rng(seed)
-    x = START.copy()
-    xs, zs = [], []
-    for k in range(steps):
-        u = controls(k)
-        x = model.f(x, u, 1.0) + np.linalg.cholesky(model.Q(x, u, 1.0)) @ rng.standard_normal(4)
-        xs.append(x)
-        zs.append(model.h(x) + np.sqrt(np.diag(model.R)) * rng.standard_normal(3))
-    return np.array(xs), np.array(zs), START + STD0 * rng.standard_normal(4)
+    xs, zs = simulate_model(model, START, controls, steps, rng)
+    return xs, zs, START + STD0 * rng.standard_normal(4)
 
 
 def time_ours(name, model, zs, x0, settings):

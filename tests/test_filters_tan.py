@@ -14,7 +14,7 @@ from uwcosim.filters.base import ESTIMATORS
 from uwcosim.filters.kalman import ExtendedKalmanFilter
 from uwcosim.models.bathymetry import synthetic_bathymetry
 from uwcosim.models.fast_tan import FastTANModel, accelerate
-from uwcosim.models.statespace import CasadiModel
+from uwcosim.models.statespace import CasadiModel, simulate
 from uwcosim.models.tan import tan_model
 from uwcosim.models.vehicle import STATE_NAMES, vehicle_ode
 
@@ -42,15 +42,8 @@ def controls(k: int) -> np.ndarray:
 def trajectory(model):
     """Truth from the CasADi model: x' = f(x, u) + w, w ~ N(0, Q); z = h(x) + v."""
     rng = np.random.default_rng(42)
-    x = START.copy()
-    xs, zs = [], []
-    for k in range(STEPS):
-        u = controls(k)
-        x = model.f(x, u, 1.0) + np.linalg.cholesky(model.Q(x, u, 1.0)) @ rng.standard_normal(4)
-        xs.append(x)
-        zs.append(model.h(x) + np.sqrt(np.diag(model.R)) * rng.standard_normal(3))
-    x0 = START + STD0 * rng.standard_normal(4)
-    return np.array(xs), np.array(zs), x0
+    xs, zs = simulate(model, START, controls, STEPS, rng)
+    return xs, zs, START + STD0 * rng.standard_normal(4)
 
 
 def run(est, zs, steps=STEPS):

@@ -39,6 +39,7 @@ from uwcosim.filters.projection_model import (
     assemble_estimate,
     block_index,
 )
+from uwcosim.filters.projection_ops import axes_moments
 
 _TAPS = np.arange(-1, 3)
 _POWERS = np.arange(4.0)
@@ -189,35 +190,6 @@ def shift_blur(values: np.ndarray, spacing, coords: list[np.ndarray], D: np.ndar
     return out
 
 
-def _moments(axes, w):
-    """Mean and covariance of grid weights ``w`` (any positive scale) on the tensor grid."""
-    n = len(axes)
-    if n == 2:  # the TAN position: two marginals and one bilinear form
-        m0 = w.sum(axis=1)
-        total = m0.sum()
-        m1 = w.sum(axis=0)
-        mean = np.array([m0 @ axes[0], m1 @ axes[1]]) / total
-        d0 = axes[0] - mean[0]
-        d1 = axes[1] - mean[1]
-        c01 = d0 @ w @ d1 / total
-        return mean, np.array([[m0 @ (d0 * d0) / total, c01], [c01, m1 @ (d1 * d1) / total]])
-    w = w / w.sum()
-    mean = np.empty(n)
-    marg = []
-    for d in range(n):
-        m = w.sum(axis=tuple(i for i in range(n) if i != d))
-        marg.append(m)
-        mean[d] = m @ axes[d]
-    cov = np.empty((n, n))
-    for r in range(n):
-        cov[r, r] = marg[r] @ (axes[r] - mean[r]) ** 2
-        for s in range(r + 1, n):
-            m2 = w.sum(axis=tuple(i for i in range(n) if i not in (r, s)))
-            cov[r, s] = cov[s, r] = (axes[r] - mean[r]) @ m2 @ (axes[s] - mean[s])
-    return mean, cov
-
-
-
 @register("point_mass")
 class PointMassFilter(Estimator):
     """Grid (point-mass) Bayes filter with a grid re-centred on the support every step."""
@@ -319,7 +291,7 @@ class PointMassFilter(Estimator):
         else:
             self._chapman_kolmogorov(u, dt, inc)
             self._normalize()
-            self._mean, self._cov = _moments(self.axes, self.values)
+            self._mean, self._cov = axes_moments(self.axes, self.values)
         self._set_estimate()
 
     def _chapman_kolmogorov(self, u, dt: float, inc) -> None:
@@ -386,7 +358,7 @@ class PointMassFilter(Estimator):
                 self.diagnostics["loglik"] = float(np.log(Z) + llmax)
             else:
                 self.diagnostics["update_skipped"] = 1.0
-        self._mean, self._cov = _moments(self.axes, self.values)
+        self._mean, self._cov = axes_moments(self.axes, self.values)
         self._set_estimate()
         d = self.diagnostics
         d["n_points"] = float(self.values.size)

@@ -313,8 +313,12 @@ def moments(m: np.ndarray, basis: SpectralBasis) -> tuple[np.ndarray, np.ndarray
 
 def grid_moments(values: np.ndarray, basis: SpectralBasis) -> tuple[np.ndarray, np.ndarray]:
     """Mean and covariance of nonnegative grid values (trapezoid quadrature, eqs. 50-51)."""
-    axes = basis.axes()
-    n = basis.n
+    return axes_moments(basis.axes(), values)
+
+
+def axes_moments(axes, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and covariance of nonnegative weights ``values`` (any scale) on a tensor grid."""
+    n = len(axes)
     if n == 2:  # two marginals and one bilinear form
         m0 = values.sum(axis=1)
         total = m0.sum()

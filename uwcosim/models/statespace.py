@@ -95,3 +95,18 @@ class CasadiModel:
         if hm is None:
             hm = self._h_maps[n] = self._h.map(n)
         return np.asarray(hm(X.T)).T
+
+
+def simulate(model, x0, controls, steps: int, rng: np.random.Generator, dt: float = 1.0):
+    """A truth trajectory of a filter model itself, without FMUs (for filter studies, tests and
+    benchmarks): ``x_{k+1} = f(x_k, u_k) + chol(Q) w``, ``z_{k+1} = h(x_{k+1}) + sqrt(diag R) v``
+    with ``u_k = controls(k)``. Returns the states and measurements of steps 1..steps."""
+    x = np.asarray(x0, dtype=float).copy()
+    r = np.sqrt(np.diag(model.R))
+    xs, zs = [], []
+    for k in range(steps):
+        u = controls(k)
+        x = model.f(x, u, dt) + np.linalg.cholesky(model.Q(x, u, dt)) @ rng.standard_normal(x.size)
+        xs.append(x)
+        zs.append(model.h(x) + r * rng.standard_normal(r.size))
+    return np.array(xs), np.array(zs)

@@ -2,7 +2,8 @@
 
 ``uwcosim run SCENARIO [--seed N] [--out DIR] [--set key=value ...]``
 ``uwcosim fmu build|info|validate|check ...``, ``uwcosim regress RUN BASELINE``,
-``uwcosim baseline update|check``, ``uwcosim campaign SPEC``, ``uwcosim verify example1``.
+``uwcosim baseline update|check``, ``uwcosim campaign SPEC``, ``uwcosim verify example1``,
+``uwcosim ssp export SCENARIO [--out FILE]``.
 User errors are caught once here: one line on stderr, a non-zero exit status, no traceback.
 """
 
@@ -25,7 +26,8 @@ def _cmd_run(args) -> int:
     result = run_scenario(loaded, out, seed=args.seed, figures=not args.no_figures)
     from uwcosim.plots.run_figures import results_table
 
-    print(results_table(result.summary), end="")
+    if result.summary.get("estimators"):
+        print(results_table(result.summary), end="")
     t = result.summary["timing"]
     print(f"master overhead {1e6 * t['master_overhead_per_step_s']:.1f} us/step, "
           f"FMUs {1e6 * t['fmus_per_step_s']:.1f} us/step")
@@ -118,6 +120,19 @@ def _cmd_summary(args) -> int:
     return 0
 
 
+def _cmd_ssp_export(args) -> int:
+    from uwcosim.scenario import load_scenario
+    from uwcosim.ssp.export import export_ssp
+
+    loaded = load_scenario(args.scenario, args.set or [])
+    out = Path(args.out) if args.out else Path(f"{loaded.path.stem}.ssp")
+    path, notes = export_ssp(loaded, out)
+    for note in notes:
+        print(f"note: {note}")
+    print(path)
+    return 0
+
+
 def _cmd_campaign(args) -> int:
     from uwcosim.campaign import load_campaign
     from uwcosim.campaign.run import run_campaign
@@ -137,8 +152,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="uwcosim", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
 
-    r = sub.add_parser("run", help="run a scenario")
-    r.add_argument("scenario")
+    r = sub.add_parser("run", help="run a scenario (a TOML file, or an .ssp alone: a plain "
+                       "co-simulation)")
+    r.add_argument("scenario", help="scenario .toml, or an SSP file .ssp")
     r.add_argument("--seed", type=int, default=None, help="override run.seed")
     r.add_argument("--out", default=None, help="run directory (default runs/<scenario name>)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
@@ -171,6 +187,16 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--step", type=float, default=0.5, help="smoke run step (s)")
     k.add_argument("--timeout", type=float, default=30.0, help="time limit per FMU call (s)")
     k.set_defaults(func=_cmd_fmu_check)
+
+    s = sub.add_parser("ssp", help="SSP (System Structure and Parameterization) files")
+    ss = s.add_subparsers(dest="ssp_command", required=True)
+    e = ss.add_parser("export", help="write the scenario's truth side (FMUs, connections, "
+                      "parameters, default experiment) as an .ssp")
+    e.add_argument("scenario", help="scenario .toml (or .ssp)")
+    e.add_argument("--out", default=None, help="output file (default: ./<scenario name>.ssp)")
+    e.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="override any scenario key first, as for 'run'")
+    e.set_defaults(func=_cmd_ssp_export)
 
     c = sub.add_parser("campaign", help="Monte Carlo campaign (local processes or Dask)")
     c.add_argument("spec")

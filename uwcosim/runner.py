@@ -61,7 +61,7 @@ class _LogHook:
         self.sig = signal_slots
         n_est = len(bank.tracks) if bank else 0
         self.width = 1 + len(signal_slots) + (len(bank.meas_slots) if bank else 0) \
-            + n_est * (2 * model.nx + 2)
+            + (n_est * (2 * model.nx + 2) if bank else 0)
         self.row = np.empty(self.width)
 
     def __call__(self, master: Master) -> None:

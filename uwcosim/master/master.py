@@ -50,6 +50,15 @@ class _Node:
     out_slots: np.ndarray
     input_fn: Callable | None = None
     time_s: float = 0.0
+    #: per-input ``(factor, offset)`` of connections with a linear transformation, or None
+    in_affine: tuple[np.ndarray, np.ndarray] | None = None
+
+    def gather(self, bus: np.ndarray) -> None:
+        """Copy this FMU's inputs from the bus (``factor * value + offset`` where given)."""
+        np.take(bus, self.in_slots, out=self.inputs.view)
+        if self.in_affine is not None:
+            self.inputs.view *= self.in_affine[0]
+            self.inputs.view += self.in_affine[1]
 
 
 @dataclass
@@ -140,13 +149,18 @@ class Master:
                 key = f"sensornoise.{sname}.{i}"
                 self.slots[key] = len(self.slots)
                 self._check_input(tgt, f"sensors.{sname}.noise_inputs", drivers, key)
-        for i, (src, dst) in enumerate(spec.connections):
+        transforms: dict[str, tuple[float, float]] = {}  # input -> (factor, offset)
+        for i, conn in enumerate(spec.connections):
+            src, dst = conn[0], conn[1]
             self._slot(src, f"connections[{i}]")
             self._check_input(dst, f"connections[{i}]", drivers, src)
+            if len(conn) > 2:
+                transforms[dst] = (conn[2].factor, conn[2].offset)
         self.drivers = drivers
         self.bus = np.zeros(len(self.slots))
         deps = {n: a.feedthrough() for n, a in self.adapters.items()}
-        order = stepping_order(list(self.adapters), list(spec.connections), deps)
+        order = stepping_order(list(self.adapters), [(c[0], c[1]) for c in spec.connections],
+                               deps)
         self.nodes: list[_Node] = []
         for name in order:
             ad = self.adapters[name]
@@ -161,6 +175,9 @@ class Master:
                 outputs=ad.bind(outs),
                 out_slots=np.array([self.slots[f"{name}.{o}"] for o in outs], dtype=np.intp),
             )
+            if any(f"{name}.{i}" in transforms for i in ins):
+                fo = np.array([transforms.get(f"{name}.{i}", (1.0, 0.0)) for i in ins])
+                node.in_affine = (fo[:, 0].copy(), fo[:, 1].copy())
             if ad.interface == "me":
                 node.input_fn = self._continuous_inputs(node, ins, name)
             self.nodes.append(node)
@@ -300,7 +317,7 @@ class Master:
         self.k = 0
         self._load_sources(0)
         for node in self.nodes:
-            np.take(self.bus, node.in_slots, out=node.inputs.view)
+            node.gather(self.bus)
             node.adapter.set_inputs(node.inputs, self.t0)
             self._read(node, self.t0)
         self._initialized = True
@@ -335,7 +352,7 @@ class Master:
             if (k + 1) % p:
                 continue
             a = time.perf_counter()
-            np.take(self.bus, node.in_slots, out=node.inputs.view)
+            node.gather(self.bus)
             node.adapter.do_step(self.t0 + (k + 1 - p) * self.h, p * self.h, node.inputs,
                                  node.input_fn)
             self._read(node, t_next)

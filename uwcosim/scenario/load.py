@@ -26,6 +26,8 @@ class LoadedScenario:
     path: Path
     text: str
     overrides: tuple[str, ...]
+    #: the SSP of ``[system] ssp`` or of an ``.ssp`` run (:class:`uwcosim.ssp.scenario.SSPArchive`)
+    ssp: Any = None
 
     @property
     def base_dir(self) -> Path:
@@ -40,6 +42,8 @@ class LoadedScenario:
         h = hashlib.sha256(self.text.encode())
         for o in self.overrides:
             h.update(b"\0" + o.encode())
+        if self.ssp is not None:
+            h.update(b"\0ssp:" + self.ssp.sha256.encode())
         return h.hexdigest()
 
 
@@ -118,9 +122,14 @@ def format_validation_error(
 
 
 def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> LoadedScenario:
-    """Read, override and validate a scenario; raise ScenarioError with one line on failure."""
+    """Read, override and validate a scenario (a TOML file, or an ``.ssp`` run alone); raise
+    ScenarioError with one line on failure."""
     path = Path(path)
     where = str(path)
+    if path.suffix.lower() == ".ssp":
+        from uwcosim.ssp.scenario import load_ssp
+
+        return load_ssp(path, overrides)
     if not path.is_file():
         raise ScenarioError(f"{where}: scenario file not found")
     text = path.read_text(encoding="utf-8")
@@ -130,8 +139,14 @@ def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = ())
         raise ScenarioError(f"{where}: invalid TOML ({exc})") from None
     for keys, value in parse_overrides(overrides, where):
         _apply(data, keys, value, where)
+    ssp = None
+    if isinstance(data.get("system"), dict) and "ssp" in data["system"]:
+        from uwcosim.ssp.scenario import merge_system
+
+        ssp = merge_system(data, path, where)
     try:
         spec = Scenario.model_validate(data)
     except ValidationError as exc:
         raise ScenarioError(format_validation_error(exc, where)) from None
-    return LoadedScenario(spec=spec, path=path.resolve(), text=text, overrides=tuple(overrides))
+    return LoadedScenario(spec=spec, path=path.resolve(), text=text, overrides=tuple(overrides),
+                          ssp=ssp)

@@ -47,6 +47,23 @@ class FMUSpec(Strict):
     timeout_s: PositiveFloat | None = None
 
 
+class ConnectionTransform(Strict):
+    """A linear transformation on a connection: ``input = factor * output + offset``."""
+
+    factor: float = 1.0
+    offset: float = 0.0
+
+
+#: ``[output, input]`` or ``[output, input, {factor = ..., offset = ...}]``
+Connection = tuple[str, str] | tuple[str, str, ConnectionTransform]
+
+
+class SystemSpec(Strict):
+    """The truth side from another tool: an SSP file (see :mod:`uwcosim.ssp`)."""
+
+    ssp: str
+
+
 class ControlSpec(Strict):
     target: str
     table: list[tuple[float, float]] | None = None
@@ -171,8 +188,9 @@ class Scenario(Strict):
     name: str = "scenario"
     description: str = ""
     run: RunSpec
+    system: SystemSpec | None = None
     fmus: dict[str, FMUSpec]
-    connections: list[tuple[str, str]] = []
+    connections: list[Connection] = []
     controls: dict[str, ControlSpec] = {}
     noise: dict[str, NoiseSpec] = {}
     sensors: dict[str, SensorSpec] = {}

@@ -1,0 +1,154 @@
+"""Export a scenario's truth side as an SSP 1.0 file (``uwcosim ssp export``).
+
+Written: every FMU (``resources/NAME.fmu``) as a component with its interface as the
+``implementation``, connectors for its connected variables (type and unit from the FMU),
+its parameters and start values as one parameter set ``resources/NAME.ssv``, the connections
+(a ``{factor, offset}`` as an ``ssc:LinearTransformation``), and the run's start and stop time
+as the DefaultExperiment, with the communication step in an annotation of type
+``org.uwcosim`` (SSP 1.0 has no step; other tools ignore the annotation). The archive is
+byte-for-byte reproducible (fixed member dates and order).
+
+Not written (SSP has no place for them; listed in the returned notes): controls, noise,
+sensors, estimators, the bathymetry map file, variable maps, and the master's per-FMU settings
+(solver, substeps, rtol, period, timeout).
+"""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+from uwcosim.errors import ScenarioError
+from uwcosim.scenario.load import LoadedScenario
+from uwcosim.ssp.read import FMU_TYPE, NS, UWC_NS
+
+_IMPLEMENTATION = {"cs": "CoSimulation", "me": "ModelExchange"}
+_DATE = (1980, 1, 1, 0, 0, 0)
+
+
+def _element(parent, tag: str, **attrib):
+    from lxml import etree
+
+    prefix, _, name = tag.partition(":")
+    return etree.SubElement(parent, f"{{{NS[prefix]}}}{name}",
+                            {k: v for k, v in attrib.items() if v is not None})
+
+
+def _typed(parent, prefix: str, value, unit: str | None = None) -> None:
+    if isinstance(value, bool):
+        _element(parent, f"{prefix}:Boolean", value="true" if value else "false")
+    elif isinstance(value, int):
+        _element(parent, f"{prefix}:Integer", value=str(value))
+    elif isinstance(value, float):
+        _element(parent, f"{prefix}:Real", value=repr(value), unit=unit)
+    else:
+        _element(parent, f"{prefix}:String", value=str(value))
+
+
+def _ssv(name: str, values: dict, variables: dict) -> bytes:
+    from lxml import etree
+
+    from uwcosim.master.varmap import fmu_unit
+
+    root = etree.Element(f"{{{NS['ssv']}}}ParameterSet", {"version": "1.0", "name": name},
+                         nsmap={"ssv": NS["ssv"]})
+    params = _element(root, "ssv:Parameters")
+    for pname, value in values.items():
+        p = _element(params, "ssv:Parameter", name=pname)
+        v = variables.get(pname)
+        if isinstance(value, int | float) and not isinstance(value, bool) and v is not None \
+                and v.type in ("Real", "Float64", "Float32"):
+            value = float(value)
+        _typed(p, "ssv", value, fmu_unit(v) if v is not None else None)
+    return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+
+
+def export_ssp(loaded: LoadedScenario, out: str | Path) -> tuple[Path, list[str]]:
+    """Write the truth side of ``loaded`` to ``out``; return the path and what was left out."""
+    from lxml import etree
+
+    from uwcosim.master.adapter import read_description
+    from uwcosim.master.varmap import fmu_unit
+
+    spec = loaded.spec
+    out = Path(out)
+    where = str(loaded.path)
+    notes: list[str] = []
+    for key in ("controls", "noise", "sensors", "estimators"):
+        if getattr(spec, key):
+            notes.append(f"[{key}] not exported (SSP describes the FMU system only)")
+    if spec.map is not None:
+        notes.append(f"[map] not exported: set {spec.map.fmu_parameter} in the other tool")
+    connected: dict[str, dict[str, str]] = {}
+    for c in spec.connections:
+        for sig, kind in ((c[0], "output"), (c[1], "input")):
+            fmu, _, var = sig.partition(".")
+            connected.setdefault(fmu, {})[var] = kind
+
+    root = etree.Element(f"{{{NS['ssd']}}}SystemStructureDescription",
+                         {"version": "1.0", "name": spec.name},
+                         nsmap={"ssd": NS["ssd"], "ssc": NS["ssc"], "ssv": NS["ssv"]})
+    system = _element(root, "ssd:System", name=spec.name, description=spec.description or None)
+    elements = _element(system, "ssd:Elements")
+    files: list[tuple[str, bytes]] = []
+    sources: dict[Path, str] = {}
+    for name, f in spec.fmus.items():
+        path = loaded.resolve(f.path)
+        md = read_description(path)
+        variables = {v.name: v for v in md.modelVariables}
+        if f.map is not None:
+            notes.append(f"fmus.{name}.map not exported (the SSP uses the FMU's own names)")
+        dropped = [k for k in ("solver", "substeps", "rtol", "period", "timeout_s")
+                   if getattr(f, k) != type(f).model_fields[k].default]
+        if dropped:
+            notes.append(f"fmus.{name}: {', '.join(dropped)} not exported")
+        if path not in sources:
+            member = f"resources/{path.stem}.fmu"
+            if member in {m for m, _ in files}:
+                member = f"resources/{name}.fmu"
+            sources[path] = member
+            files.append((member, path.read_bytes()))
+        comp = _element(elements, "ssd:Component", name=name, type=FMU_TYPE,
+                        source=sources[path], implementation=_IMPLEMENTATION[f.interface])
+        if name in connected:
+            conns = _element(comp, "ssd:Connectors")
+            for var, kind in connected[name].items():
+                v = variables.get(var)
+                if v is None:
+                    raise ScenarioError(f"{where}: FMU {name!r} has no variable {var!r} "
+                                        f"(connections)")
+                c = _element(conns, "ssd:Connector", name=var, kind=kind)
+                if v.type in ("Real", "Float64", "Float32"):
+                    _element(c, "ssc:Real", unit=fmu_unit(v))
+        values = {**f.parameters, **f.start}
+        if values:
+            unknown = [k for k in values if k not in variables]
+            if unknown:
+                raise ScenarioError(f"{where}: fmus.{name}: {', '.join(unknown)} not variables "
+                                    f"of the FMU (role names of a variable map cannot be "
+                                    f"exported)")
+            member = f"resources/{name}.ssv"
+            files.append((member, _ssv(name, values, variables)))
+            binds = _element(comp, "ssd:ParameterBindings")
+            _element(binds, "ssd:ParameterBinding", source=member)
+    if spec.connections:
+        conns = _element(system, "ssd:Connections")
+        for c in spec.connections:
+            (se, _, sc), (ee, _, ec) = c[0].partition("."), c[1].partition(".")
+            conn = _element(conns, "ssd:Connection", startElement=se, startConnector=sc,
+                            endElement=ee, endConnector=ec)
+            if len(c) > 2:
+                _element(conn, "ssc:LinearTransformation", factor=repr(float(c[2].factor)),
+                         offset=repr(float(c[2].offset)))
+    run = spec.run
+    exp = _element(root, "ssd:DefaultExperiment", startTime=repr(float(run.start_time)),
+                   stopTime=repr(float(run.start_time + run.duration)))
+    ann = _element(_element(exp, "ssd:Annotations"), "ssc:Annotation", type="org.uwcosim")
+    etree.SubElement(ann, f"{{{UWC_NS}}}Experiment", {"stepSize": repr(float(run.step))},
+                     nsmap={"uwc": UWC_NS})
+    ssd = etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
+        for member, data in [("SystemStructure.ssd", ssd), *files]:
+            zf.writestr(zipfile.ZipInfo(member, _DATE), data, zipfile.ZIP_DEFLATED)
+    return out, notes

@@ -204,7 +204,9 @@ class _Reader:
         if member not in self.members:
             raise self.fail(f"component {comp!r}: source {source!r} is not in the archive")
         if member not in self.extracted:
-            out = self.fmu_dir / f"{len(self.extracted)}_{src.name}"
+            out = self.fmu_dir / src.name
+            if out.exists():  # same file name in another folder of the archive
+                out = self.fmu_dir / f"{len(self.extracted)}_{src.name}"
             out.write_bytes(zf.read(member))
             self.extracted[member] = out
         return self.extracted[member]
@@ -522,4 +524,5 @@ def _step_size(root) -> float | None:
 
 def read_ssp(path: str | Path, fmu_dir: str | Path) -> FlatSystem:
     """Read and flatten an ``.ssp`` file; its FMUs are extracted into ``fmu_dir``."""
+    Path(fmu_dir).mkdir(parents=True, exist_ok=True)
     return _Reader(Path(path), Path(fmu_dir)).read()

@@ -53,8 +53,10 @@ def _connections(system: FlatSystem) -> list[list]:
     return out
 
 
-def apply_system(data: dict, system: FlatSystem, where: str, fmu_paths: bool = True) -> None:
-    """Merge ``system`` into the scenario data ``data`` (the scenario's own keys win)."""
+def apply_system(data: dict, system: FlatSystem, where: str, fmu_paths: bool = True,
+                 check_run: bool = True) -> None:
+    """Merge ``system`` into the scenario data ``data`` (the scenario's own keys win);
+    ``check_run``: a ScenarioError when ``[run]`` still lacks its step or duration."""
     fmus = data.setdefault("fmus", {})
     if isinstance(fmus, dict):
         for c in system.components.values():
@@ -79,10 +81,10 @@ def apply_system(data: dict, system: FlatSystem, where: str, fmu_paths: bool = T
         run["duration"] = system.stop_time - float(run.get("start_time", 0.0))
     if system.step is not None:
         run.setdefault("step", system.step)
-    if "step" not in run:
+    if check_run and "step" not in run:
         raise ScenarioError(f"{where}: key 'run.step': required: the SSP gives no communication "
                             f"step (SSP 1.0 has none); set it in [run] or with --set run.step=H")
-    if "duration" not in run:
+    if check_run and "duration" not in run:
         raise ScenarioError(f"{where}: key 'run.duration': required: the SSP's "
                             f"DefaultExperiment has no stopTime; set it in [run] or with "
                             f"--set run.duration=T")
@@ -109,7 +111,7 @@ def equivalent_toml(system: FlatSystem, ssp_name: str, sha256: str) -> str:
     import tomli_w
 
     data: dict = {"name": system.name}
-    apply_system(data, system, ssp_name, fmu_paths=False)
+    apply_system(data, system, ssp_name, fmu_paths=False, check_run=False)
     return (f"# generated from {ssp_name} (sha256 {sha256}); FMU paths are members of "
             f"the archive\n" + tomli_w.dumps(data))
 

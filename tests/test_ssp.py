@@ -91,7 +91,8 @@ def auv_ssp(path: Path, fmus: Path) -> Path:
     """The truth side of scenarios/tan_dead_reckoning.toml as an SSP: the vehicle's start
     values come from a parameter set bound on the system (prefix ``vehicle.``), x and y in km."""
     system = (
-        '<ssd:System name="auv"><ssd:ParameterBindings>'
+        '<ssd:System name="auv"><ssd:Connectors><ssd:Connector name="hs" kind="parameter">'
+        "<ssc:Real/></ssd:Connector></ssd:Connectors><ssd:ParameterBindings>"
         '<ssd:ParameterBinding source="resources/start.ssv" prefix="vehicle."/>'
         "</ssd:ParameterBindings><ssd:Elements>"
         + comp("vehicle", "AUVKinematics.fmu",
@@ -120,6 +121,19 @@ def test_read_flat_system_with_parameter_set_and_default_experiment(project_fmus
         ("vehicle.x", "sounder.x", 1.0, 0.0), ("vehicle.y", "sounder.y", 1.0, 0.0)]
     assert (system.start_time, system.stop_time, system.step) == (0.0, 50.0, 1.0)
     assert sha256_file(system.components["dvl"].fmu) == sha256_file(project_fmus / "DVL.fmu")
+
+
+def test_step_from_a_fixed_step_master_annotation(project_fmus, tmp_path):
+    system = ('<ssd:System name="s"><ssd:Elements>' + comp("fi", "FaultInjector.fmu")
+              + "</ssd:Elements></ssd:System>")
+    other = ('<ssd:Annotations><ssc:Annotation type="org.example"><x:SimulationInformation '
+             'xmlns:x="urn:example"><x:FixedStepMaster stepSize="0.25"/>'
+             "</x:SimulationInformation></ssc:Annotation></ssd:Annotations>")
+    path = write_ssp(tmp_path / "s.ssp", ssd(system, experiment(2.0) + other),
+                     {"resources/FaultInjector.fmu": project_fmus / "FaultInjector.fmu"})
+    loaded = load_scenario(path)
+    assert (loaded.spec.run.step, loaded.spec.run.duration) == (0.25, 2.0)
+    assert loaded.spec.connections == [] and list(loaded.spec.fmus) == ["fi"]
 
 
 def test_ssp_truth_with_our_sensors_gives_the_same_log_as_the_toml(project_fmus, tmp_path):
@@ -167,16 +181,20 @@ def nested_ssp(path: Path, fmus: Path) -> Path:
         + conn("vx", "dvl.vx") + conn("x", "inner.x") + conn("inner.y", "y")
         + conn("dvl.vx_m", "vx_m") + "</ssd:Connections></ssd:System>")
     root = (
-        '<ssd:System name="auv"><ssd:ParameterBindings>'
+        '<ssd:System name="auv"><ssd:Connectors><ssd:Connector name="hs" kind="parameter">'
+        "<ssc:Real/></ssd:Connector></ssd:Connectors><ssd:ParameterBindings>"
         '<ssd:ParameterBinding source="resources/root.ssv"/></ssd:ParameterBindings>'
         "<ssd:Elements>"
         + comp("vehicle", "AUVKinematics.fmu", cx("x", "output") + cx("y", "output")
                + cx("vx", "output"),
                '<ssd:ParameterBinding source="resources/vehicle.ssv"/>')
-        + comp("fi", "FaultInjector.fmu", cx("u", "input") + cx("y", "output"))
+        + comp("fi", "FaultInjector.fmu",
+               cx("u", "input") + cx("y", "output") + cx("hang_seconds", "parameter"))
         + nav + "</ssd:Elements><ssd:Connections>"
         + conn("vehicle.vx", "nav.vx") + conn("vehicle.x", "nav.x") + conn("nav.y", "vehicle.y")
-        + conn("nav.vx_m", "fi.u") + "</ssd:Connections></ssd:System>")
+        + conn("nav.vx_m", "fi.u")
+        + conn("hs", "fi.hang_seconds", '<ssc:LinearTransformation factor="2"/>')
+        + "</ssd:Connections></ssd:System>")
     files = {
         # the component's own set, then the system's: the system's value wins for x
         "resources/vehicle.ssv": ssv({"x": '<ssv:Real value="1.0"/>',
@@ -185,7 +203,7 @@ def nested_ssp(path: Path, fmus: Path) -> Path:
                                       "max_internal_step": '<ssv:Real value="0.05"/>'}),
         "resources/root.ssv": ssv({"vehicle.x": '<ssv:Real value="3000"/>',
                                    "nav.inner.sounder.mapFile": '<ssv:String value="root.bin"/>',
-                                   "fi.hang_seconds": '<ssv:Real value="7"/>'}),
+                                   "hs": '<ssv:Real value="7"/>'}),  # to fi, times 2
     }
     return write_ssp(path, ssd(root, experiment(20)),
                      {f"resources/{n}.fmu": fmus / f"{n}.fmu"
@@ -200,11 +218,12 @@ def test_nested_systems_are_flattened(project_fmus, tmp_path):
         ("nav_dvl.vx_m", "fi.u"), ("vehicle.vx", "nav_dvl.vx"),
         ("vehicle.x", "nav_inner_sounder.x"), ("vehicle.y", "nav_inner_sounder.y")]
     v = system.components["vehicle"]
-    assert v.start == {"x": 3000.0, "vx": 0.5, "y": 18000.0}  # the root's binding overrides the vehicle's
+    # the root's binding overrides the vehicle's own
+    assert v.start == {"x": 3000.0, "vx": 0.5, "y": 18000.0}
     assert v.parameters == {"max_internal_step": 0.05}
     # bound on nav and on the root: the higher level wins
     assert system.components["nav_inner_sounder"].parameters == {"mapFile": "root.bin"}
-    assert system.components["fi"].parameters == {"hang_seconds": 7.0}
+    assert system.components["fi"].parameters == {"hang_seconds": 14.0}
     assert system.step is None and system.stop_time == 20.0
 
 

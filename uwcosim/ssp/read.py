@@ -252,8 +252,11 @@ class _Reader:
             fmu = self._extract(zf, el.source, hname)
             md = read_description(fmu)
             variables = {v.name: v for v in md.modelVariables}
+            interface = _INTERFACES[cx.get("implementation", "any")]
+            if interface is None and md.coSimulation is None:
+                interface = "me"  # "any" and the FMU has model exchange only
             flat = FlatComponent(name="_".join(p), path=hname, source=el.source, fmu=fmu,
-                                 interface=_INTERFACES[cx.get("implementation", "any")])
+                                 interface=interface)
             conns = self._connectors(cx, f"component {hname!r}", variables)
             self.comps[p] = _Comp(flat, md, variables, conns, el)
         for c, cx in zip(system.connections,
@@ -436,6 +439,8 @@ class _Reader:
                                      f"{where}: parameter {var!r}")
                 value = a * value + b
             value = F * value + O
+        elif isinstance(value, float) and value.is_integer() and v.type != "String":
+            value = int(value)  # a Real in the parameter set for an Integer variable
         target = (comp.flat.parameters if v.causality in ("parameter", "calculatedParameter")
                   or v.type not in REAL_TYPES else comp.flat.start)
         comp.flat.parameters.pop(var, None)

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from uwcosim.errors import ScenarioError
 from uwcosim.scenario.load import LoadedScenario
-from uwcosim.ssp.read import FMU_TYPE, NS, UWC_NS
+from uwcosim.ssp.xml import FMU_TYPE, NS, UWC_NS
 
 _IMPLEMENTATION = {"cs": "CoSimulation", "me": "ModelExchange"}
 _DATE = (1980, 1, 1, 0, 0, 0)

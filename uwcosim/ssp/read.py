@@ -28,19 +28,20 @@ from pathlib import Path, PurePosixPath
 
 from uwcosim.errors import ScenarioError
 from uwcosim.master.varmap import UNITS, _canonical, fmu_unit
-
-SSP1 = "http://ssp-standard.org/SSP1/"
-NS = {k: SSP1 + v for k, v in (("ssd", "SystemStructureDescription"),
-                               ("ssc", "SystemStructureCommon"),
-                               ("ssv", "SystemStructureParameterValues"))}
-UWC_NS = "urn:uwcosim:ssp:1"  # our annotation: the communication step
-FMU_TYPE = "application/x-fmu-sharedlibrary"
-PARAMETER_SET_TYPE = "application/x-ssp-parameter-set"
-REAL_TYPES = ("Real", "Float64", "Float32")
-_INTERFACES = {"any": None, "CoSimulation": "cs", "ModelExchange": "me"}
-_BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
-_SI = {"m": {"m": 1}, "rad": {"rad": 1}, "s": {"s": 1}, "m/s": {"m": 1, "s": -1},
-       "m/s2": {"m": 1, "s": -2}}
+from uwcosim.ssp.xml import (
+    BASE_UNITS,
+    FMU_TYPE,
+    INTERFACES,
+    NS,
+    PARAMETER_SET_TYPE,
+    REAL_TYPES,
+    SI_EXPONENTS,
+    as_float,
+    end_name,
+    parameter_value,
+    step_size,
+    unsupported_element,
+)
 
 
 @dataclass
@@ -136,10 +137,12 @@ class _Reader:
                 raise self.fail(f"SystemStructure.ssd: <{etree.QName(root).localname}> in "
                                 f"namespace {ns!r} (version {version}) is not supported: "
                                 f"uwcosim reads SSP 1.x ({NS['ssd']})")
-            self._check_unsupported(root)
+            msg = unsupported_element(root)
+            if msg:
+                raise self.fail(msg)
             ssd = self._fmpy_read()
             for u in ssd.units:
-                self.units[u.name] = (tuple(getattr(u, k) for k in _BASE), u.factor, u.offset)
+                self.units[u.name] = (tuple(getattr(u, k) for k in BASE_UNITS), u.factor, u.offset)
             self._walk(ssd.system, root.find("ssd:System", NS), (), zf)
         flat_names: dict[str, str] = {}
         for c in self.comps.values():
@@ -152,12 +155,12 @@ class _Reader:
         exp = root.find("ssd:DefaultExperiment", NS)
         start = stop = None
         if exp is not None:
-            start = _float(exp.get("startTime"))
-            stop = _float(exp.get("stopTime"))
+            start = as_float(exp.get("startTime"))
+            stop = as_float(exp.get("stopTime"))
         comps = {c.flat.name: c.flat for c in self.comps.values()}
         return FlatSystem(name=ssd.name or self.path.stem, components=comps,
                           connections=connections, start_time=start, stop_time=stop,
-                          step=_step_size(root))
+                          step=step_size(root))
 
     def _fmpy_read(self):
         from fmpy.ssp.ssd import read_ssd
@@ -171,29 +174,6 @@ class _Reader:
             lines = [s.strip() for s in str(exc).splitlines() if s.strip()]
             detail = "; ".join(lines[1:3]) if len(lines) > 1 else (lines[0] if lines else "")
             raise self.fail(f"does not follow the SSP 1.0 schema: {detail}") from None
-
-    def _check_unsupported(self, root) -> None:
-        """One line for the first element we do not implement, before fmpy reads the rest."""
-        checks = (
-            ("ssd:SignalDictionaries/ssd:SignalDictionary", "signal dictionaries"),
-            ("ssd:Elements/ssd:SignalDictionaryReference", "signal dictionary references"),
-            ("ssd:ParameterBindings/ssd:ParameterBinding/ssd:ParameterMapping",
-             "parameter mappings"),
-            ("ssd:Connections/ssd:Connection/ssc:BooleanMappingTransformation",
-             "boolean mapping transformations"),
-            ("ssd:Connections/ssd:Connection/ssc:IntegerMappingTransformation",
-             "integer mapping transformations"),
-            ("ssd:Connections/ssd:Connection/ssc:EnumerationMappingTransformation",
-             "enumeration mapping transformations"),
-        )
-        for system in [root.find("ssd:System", NS), *root.iterfind(".//ssd:System", NS)]:
-            if system is None:
-                continue
-            for elements in [system, *system.iterfind("ssd:Elements/ssd:Component", NS)]:
-                for xpath, what in checks:
-                    el = elements.find(xpath, NS)
-                    if el is not None:
-                        raise self.fail(_unsupported(el, what, system.get("name")))
 
     def _extract(self, zf: zipfile.ZipFile, source: str, comp: str) -> Path:
         src = PurePosixPath(source)
@@ -252,7 +232,7 @@ class _Reader:
             fmu = self._extract(zf, el.source, hname)
             md = read_description(fmu)
             variables = {v.name: v for v in md.modelVariables}
-            interface = _INTERFACES[cx.get("implementation", "any")]
+            interface = INTERFACES[cx.get("implementation", "any")]
             if interface is None and md.coSimulation is None:
                 interface = "me"  # "any" and the FMU has model exchange only
             flat = FlatComponent(name="_".join(p), path=hname, source=el.source, fmu=fmu,
@@ -264,10 +244,10 @@ class _Reader:
             a = ((*path, c.startElement) if c.startElement else path, c.startConnector)
             b = ((*path, c.endElement) if c.endElement else path, c.endConnector)
             lt = cx.find("ssc:LinearTransformation", NS)
-            text = (f"connection {_end(c.startElement, c.startConnector)} -> "
-                    f"{_end(c.endElement, c.endConnector)} in system {label!r}")
-            edge = _Edge(_float(lt.get("factor")) if lt is not None else None,
-                         _float(lt.get("offset")) if lt is not None else None,
+            text = (f"connection {end_name(c.startElement, c.startConnector)} -> "
+                    f"{end_name(c.endElement, c.endConnector)} in system {label!r}")
+            edge = _Edge(as_float(lt.get("factor")) if lt is not None else None,
+                         as_float(lt.get("offset")) if lt is not None else None,
                          cx.get("suppressUnitConversion", "false") in ("true", "1"), text)
             edge.factor = 1.0 if edge.factor is None else edge.factor
             edge.offset = 0.0 if edge.offset is None else edge.offset
@@ -339,12 +319,12 @@ class _Reader:
             for u in getattr(self.comps[node[0]].md, "unitDefinitions", None) or []:
                 base = getattr(u, "baseUnit", None)
                 if u.name == unit and base is not None:
-                    return (tuple(int(getattr(base, k, 0) or 0) for k in _BASE),
+                    return (tuple(int(getattr(base, k, 0) or 0) for k in BASE_UNITS),
                             float(base.factor), float(base.offset))
         known = UNITS.get(_canonical(unit))
         if known is not None:
-            exps = _SI[known[1]]
-            return tuple(exps.get(k, 0) for k in _BASE), known[0], 0.0
+            exps = SI_EXPONENTS[known[1]]
+            return tuple(exps.get(k, 0) for k in BASE_UNITS), known[0], 0.0
         return None
 
     def _convert(self, u_from: str, n_from: tuple, u_to: str, n_to: tuple,
@@ -420,7 +400,7 @@ class _Reader:
                     if p.type not in ("Real", "Integer", "Boolean", "String"):
                         raise self.fail(f"{where}: parameter {p.name!r}: type {p.type} is not "
                                         f"supported (Real, Integer, Boolean, String)")
-                    yield (b.prefix or "") + p.name, _value(p), p.unit, where
+                    yield (b.prefix or "") + p.name, parameter_value(p), p.unit, where
 
     def _assign(self, path: tuple, var: str, value, unit, where: str, F=1.0, O=0.0) -> None:
         comp = self.comps[path]
@@ -481,50 +461,6 @@ class _Reader:
                 return
         raise self.fail(f"{where}: parameter {name!r} names no element or connector of system "
                         f"{'.'.join(path) or system.name!r}")
-
-
-def _end(element: str | None, connector: str) -> str:
-    return f"{element}.{connector}" if element else connector
-
-
-def _float(text: str | None) -> float | None:
-    return None if text is None else float(text)
-
-
-def _value(p):
-    if p.type == "Real":
-        return float(p.value)
-    if p.type == "Integer":
-        return int(p.value)
-    if p.type == "Boolean":
-        return p.value.strip() in ("true", "1")
-    return p.value
-
-
-def _unsupported(el, what: str, system: str | None) -> str:
-    from lxml import etree
-
-    q = etree.QName(el)
-    prefix = {v: k for k, v in NS.items()}.get(q.namespace, "")
-    name = el.get("name")
-    tag = f"<{prefix}:{q.localname}" + (f" name={name!r}" if name else "") + ">"
-    return (f"SystemStructure.ssd: {tag} in system {system!r}: {what} are not supported "
-            f"(see docs/ssp.md for the supported subset)")
-
-
-def _step_size(root) -> float | None:
-    """The communication step: our annotation on the DefaultExperiment, or a
-    ``FixedStepMaster stepSize`` in any annotation (as OMSimulator writes it)."""
-    found = None
-    for el in root.iter("{*}Annotation"):
-        for child in el.iter():
-            step = child.get("stepSize")
-            if step is not None and (child.tag == f"{{{UWC_NS}}}Experiment"
-                                     or child.tag.endswith("FixedStepMaster")):
-                if child.tag == f"{{{UWC_NS}}}Experiment":
-                    return float(step)
-                found = found if found is not None else float(step)
-    return found
 
 
 def read_ssp(path: str | Path, fmu_dir: str | Path) -> FlatSystem:

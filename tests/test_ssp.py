@@ -304,6 +304,8 @@ def test_connection_factor_offset_in_a_toml_scenario(tan):
         assert m.signal("dvl.vy_m") == m.signal("vehicle.vy")
     finally:
         m.close()
+    with pytest.raises(ScenarioError, match=r"key 'connections': .*entry 1: factr: Extra"):
+        tan(["connections=[['vehicle.vx', 'dvl.vx'], ['vehicle.vy', 'dvl.vy', {factr=2.0}]]"])
 
 
 def test_export_reads_back_identically(project_fmus, tmp_path, capsys):

@@ -10,7 +10,14 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 Scalar = float | int | bool | str
 PositiveFloat = Annotated[float, Field(gt=0)]
@@ -200,3 +207,23 @@ class Scenario(Strict):
     estimators: dict[str, EstimatorSpec] = {}
     log: LogSpec = LogSpec()
     output: OutputSpec = OutputSpec()
+
+    @field_validator("connections", mode="before")
+    @classmethod
+    def _connection_shape(cls, value):
+        """One clear message for a malformed entry (instead of the tuple union's two)."""
+        for i, c in enumerate(value if isinstance(value, list) else []):
+            ok = isinstance(c, list | tuple) and len(c) in (2, 3) \
+                and all(isinstance(s, str) for s in c[:2]) \
+                and (len(c) == 2 or isinstance(c[2], dict | ConnectionTransform))
+            if not ok:
+                raise ValueError(f"entry {i}: expected [\"fmu.output\", \"fmu.input\"] or "
+                                 f"[output, input, {{factor = ..., offset = ...}}], got {c!r}")
+            if len(c) == 3 and isinstance(c[2], dict):
+                try:
+                    ConnectionTransform.model_validate(c[2])
+                except ValidationError as exc:
+                    err = exc.errors()[0]
+                    raise ValueError(f"entry {i}: {'.'.join(map(str, err['loc']))}: "
+                                     f"{err['msg']} (expected factor, offset: numbers)") from None
+        return value

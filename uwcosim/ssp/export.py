@@ -121,12 +121,15 @@ def export_ssp(loaded: LoadedScenario, out: str | Path) -> tuple[Path, list[str]
                 if v.type in ("Real", "Float64", "Float32"):
                     _element(c, "ssc:Real", unit=fmu_unit(v))
         values = {**f.parameters, **f.start}
+        unknown = [k for k in values if k not in variables]
+        if unknown and f.map is None:
+            raise ScenarioError(f"{where}: fmus.{name}: {', '.join(unknown)}: not variables "
+                                f"of the FMU")
+        if unknown:
+            notes.append(f"fmus.{name}: {', '.join(unknown)} not exported (role names of the "
+                         f"variable map)")
+            values = {k: v for k, v in values.items() if k in variables}
         if values:
-            unknown = [k for k in values if k not in variables]
-            if unknown:
-                raise ScenarioError(f"{where}: fmus.{name}: {', '.join(unknown)} not variables "
-                                    f"of the FMU (role names of a variable map cannot be "
-                                    f"exported)")
             member = f"resources/{name}.ssv"
             files.append((member, _ssv(name, values, variables)))
             binds = _element(comp, "ssd:ParameterBindings")

@@ -203,7 +203,8 @@ def nested_ssp(path: Path, fmus: Path) -> Path:
                                       "max_internal_step": '<ssv:Real value="0.05"/>'}),
         "resources/root.ssv": ssv({"vehicle.x": '<ssv:Real value="3000"/>',
                                    "nav.inner.sounder.mapFile": '<ssv:String value="root.bin"/>',
-                                   "hs": '<ssv:Real value="7"/>'}),  # to fi, times 2
+                                   "hs": '<ssv:Real value="7"/>',  # to fi, times 2
+                                   "vehicle.no_such": '<ssv:Real value="1"/>'}),
     }
     return write_ssp(path, ssd(root, experiment(20)),
                      {f"resources/{n}.fmu": fmus / f"{n}.fmu"
@@ -225,6 +226,7 @@ def test_nested_systems_are_flattened(project_fmus, tmp_path):
     assert system.components["nav_inner_sounder"].parameters == {"mapFile": "root.bin"}
     assert system.components["fi"].parameters == {"hang_seconds": 14.0}
     assert system.step is None and system.stop_time == 20.0
+    assert system.ignored == ["resources/root.ssv: vehicle.no_such"]  # SSP 1.0: ignored
 
 
 def test_nested_ssp_runs_through_the_command_line(project_fmus, tmp_path, capsys, monkeypatch):

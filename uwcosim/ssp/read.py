@@ -15,8 +15,9 @@ converted to the target unit first, then ``target = factor * source + offset``).
 bindings: on a component the names are its variables; on a system they are ``elem.var``
 (``sub.elem.var`` ...) or a parameter connector of the system, followed through its
 connections. A binding higher in the hierarchy overrides a lower one; within one element, a
-later binding overrides an earlier one. Every unsupported element is one
-:class:`~uwcosim.errors.ScenarioError` line naming it.
+later binding overrides an earlier one; names that match no variable are ignored (all three as
+the SSP 1.0 schema documents ParameterBinding) and listed in :attr:`FlatSystem.ignored`.
+Every unsupported element is one :class:`~uwcosim.errors.ScenarioError` line naming it.
 """
 
 from __future__ import annotations
@@ -75,6 +76,8 @@ class FlatSystem:
     start_time: float | None = None
     stop_time: float | None = None
     step: float | None = None
+    #: bound parameters that match no variable (SSP 1.0: ignored), as "source: name"
+    ignored: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -111,6 +114,7 @@ class _Reader:
         self.adj: dict[tuple, list[tuple[tuple, _Edge]]] = {}
         self.extracted: dict[str, Path] = {}
         self.units: dict[str, tuple[tuple, float, float]] = {}
+        self.ignored: list[str] = []
 
     def fail(self, msg: str) -> ScenarioError:
         return ScenarioError(f"{self.where}: {msg}")
@@ -160,7 +164,7 @@ class _Reader:
         comps = {c.flat.name: c.flat for c in self.comps.values()}
         return FlatSystem(name=ssd.name or self.path.stem, components=comps,
                           connections=connections, start_time=start, stop_time=stop,
-                          step=step_size(root))
+                          step=step_size(root), ignored=self.ignored)
 
     def _fmpy_read(self):
         from fmpy.ssp.ssd import read_ssd
@@ -405,9 +409,9 @@ class _Reader:
     def _assign(self, path: tuple, var: str, value, unit, where: str, F=1.0, O=0.0) -> None:
         comp = self.comps[path]
         v = comp.variables.get(var)
-        if v is None:
-            raise self.fail(f"{where}: parameter {var!r}: FMU of component "
-                            f"{comp.flat.path!r} has no such variable")
+        if v is None:  # SSP 1.0: names that match no variable are ignored
+            self.ignored.append(f"{where}: {comp.flat.path}.{var}")
+            return
         if v.type in REAL_TYPES:
             if isinstance(value, str):
                 raise self.fail(f"{where}: parameter {var!r}: a string for the Real variable "
@@ -459,8 +463,7 @@ class _Reader:
                 else:
                     self._bind_name(p, rest, value, unit, where)
                 return
-        raise self.fail(f"{where}: parameter {name!r} names no element or connector of system "
-                        f"{'.'.join(path) or system.name!r}")
+        self.ignored.append(f"{where}: {'.'.join((*path, name))}")  # matches nothing: ignored
 
 
 def read_ssp(path: str | Path, fmu_dir: str | Path) -> FlatSystem:

@@ -11,6 +11,7 @@ FMUs, connections, parameters, and set ``[run]``.
 
 from __future__ import annotations
 
+import logging
 import shutil
 import tempfile
 import weakref
@@ -20,6 +21,8 @@ from pydantic import ValidationError
 
 from uwcosim.errors import ScenarioError
 from uwcosim.ssp.read import FlatSystem, read_ssp
+
+log = logging.getLogger(__name__)
 
 
 class SSPArchive:
@@ -37,6 +40,9 @@ class SSPArchive:
         except BaseException:
             self.cleanup()
             raise
+        for name in self.system.ignored:
+            log.warning("%s: parameter %s matches no variable: ignored (SSP 1.0)",
+                        self.path.name, name)
 
     def cleanup(self) -> None:
         """Remove the extracted FMUs now (otherwise done at garbage collection or exit)."""

@@ -334,6 +334,7 @@ def test_export_reads_back_identically(project_fmus, tmp_path, capsys):
 
     assert sorted(back.connections, key=key) == sorted(src.connections, key=key)
     assert (back.run.start_time, back.run.duration, back.run.step) == (10.0, 30.0, 0.5)
+    assert (back.name, back.description) == (src.name, src.description)
     # reproducible archive
     assert main([*args, *(a for s in sets for a in ("--set", s))]) == 0
     assert (tmp_path / "e.ssp").read_bytes() == first

@@ -76,6 +76,7 @@ class FlatSystem:
     start_time: float | None = None
     stop_time: float | None = None
     step: float | None = None
+    description: str = ""
     #: bound parameters that match no variable (SSP 1.0: ignored), as "source: name"
     ignored: list[str] = field(default_factory=list)
 
@@ -164,7 +165,8 @@ class _Reader:
         comps = {c.flat.name: c.flat for c in self.comps.values()}
         return FlatSystem(name=ssd.name or self.path.stem, components=comps,
                           connections=connections, start_time=start, stop_time=stop,
-                          step=step_size(root), ignored=self.ignored)
+                          step=step_size(root), ignored=self.ignored,
+                          description=ssd.system.description or "")
 
     def _fmpy_read(self):
         from fmpy.ssp.ssd import read_ssd

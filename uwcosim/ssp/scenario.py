@@ -63,6 +63,8 @@ def apply_system(data: dict, system: FlatSystem, where: str, fmu_paths: bool = T
                  check_run: bool = True) -> None:
     """Merge ``system`` into the scenario data ``data`` (the scenario's own keys win);
     ``check_run``: a ScenarioError when ``[run]`` still lacks its step or duration."""
+    if system.description:
+        data.setdefault("description", system.description)
     fmus = data.setdefault("fmus", {})
     if isinstance(fmus, dict):
         for c in system.components.values():

@@ -26,6 +26,7 @@ import zipfile
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
+from urllib.parse import unquote
 
 from uwcosim.errors import ScenarioError
 from uwcosim.master.varmap import UNITS, _canonical, fmu_unit
@@ -178,11 +179,15 @@ class _Reader:
                             f"archive") from None
         except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions on schema errors
             lines = [s.strip() for s in str(exc).splitlines() if s.strip()]
-            detail = "; ".join(lines[1:3]) if len(lines) > 1 else (lines[0] if lines else "")
-            raise self.fail(f"does not follow the SSP 1.0 schema: {detail}") from None
+            if lines and lines[0].startswith("Failed to validate"):
+                # fmpy names SystemStructure.ssd also when a parameter set (.ssv) is invalid
+                raise self.fail(f"does not follow the SSP 1.0 schema (SystemStructure.ssd or "
+                                f"a parameter set): {'; '.join(lines[1:3])}") from None
+            raise self.fail(f"cannot be read by fmpy's SSP reader ({type(exc).__name__}: "
+                            f"{' '.join(lines)})") from None
 
     def _extract(self, zf: zipfile.ZipFile, source: str, comp: str) -> Path:
-        src = PurePosixPath(source)
+        src = PurePosixPath(unquote(source))
         if ":" in source or src.is_absolute() or ".." in src.parts:
             raise self.fail(f"component {comp!r}: source {source!r} is not supported (only "
                             f"FMUs inside the .ssp archive, by a relative path)")

@@ -33,6 +33,13 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _cmd_report(args) -> int:
+    from uwcosim.report import report
+
+    print(report(args.run, args.out, html=args.html))
+    return 0
+
+
 def _cmd_fmu_build(args) -> int:
     from uwcosim.fmu.build import build_fmus
 
@@ -145,6 +152,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override any scenario key, e.g. --set run.duration=100")
     r.add_argument("--no-figures", action="store_true", help="skip figures and report")
     r.set_defaults(func=_cmd_run)
+
+    rp = sub.add_parser("report", help="rebuild the figures and report.md of an existing run "
+                        "or campaign directory from its files alone")
+    rp.add_argument("run", help="run directory (log.parquet, summary.json, map.bin) or "
+                    "campaign directory (results/)")
+    rp.add_argument("--out", default=None, help="output folder (default: the directory itself)")
+    rp.add_argument("--html", action="store_true",
+                    help="also write report.html: one self-contained page, interactive plots")
+    rp.set_defaults(func=_cmd_report)
 
     f = sub.add_parser("fmu", help="build and inspect FMUs")
     fs = f.add_subparsers(dest="fmu_command", required=True)

@@ -20,7 +20,7 @@ def _cmd_run(args) -> int:
     from uwcosim.runner import run_scenario
     from uwcosim.scenario import load_scenario
 
-    loaded = load_scenario(args.scenario, args.set or [])
+    loaded = load_scenario(args.scenario, args.set or [], overrides_base=Path.cwd())
     out = Path(args.out) if args.out else Path("runs") / loaded.path.stem
     result = run_scenario(loaded, out, seed=args.seed, figures=not args.no_figures)
     from uwcosim.plots.run_figures import results_table

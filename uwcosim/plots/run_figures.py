@@ -167,6 +167,7 @@ def results_table(summary: dict) -> str:
         rows.append(
             f"| {name} | {m['rmse_position_m']:.2f} | {m['rmse_x_m']:.2f} | {m['rmse_y_m']:.2f} "
             f"| {m.get('rmse_velocity_mps', float('nan')):.4f} | {m['anees']:.2f} "
-            f"| {1e3 * m['time_per_step_s']:.3f} | {'yes' if m['diverged'] else 'no'} |"
+            f"| {1e3 * m.get('time_per_step_s', float('nan')):.3f} "
+            f"| {'yes' if m['diverged'] else 'no'} |"
         )
     return head + "\n".join(rows) + "\n"

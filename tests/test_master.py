@@ -7,12 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import SCENARIOS
 from uwcosim.master.master import Master
 from uwcosim.models.bathymetry import synthetic_bathymetry
 from uwcosim.runlog import read_log
 from uwcosim.runner import run_scenario
-
-from tests.conftest import SCENARIOS
 
 VARIANTS = [
     pytest.param("AUVKinematics_fmi2.fmu", "cs", id="fmi2-cs"),

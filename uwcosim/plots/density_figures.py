@@ -2,9 +2,9 @@
 
 During the run, :class:`DensitySnapshots` (a master hook) evaluates the density of every
 estimator that has one (``density_grid``) on one common grid per instant: the union of the
-estimators' own boxes, made square. The snapshots are saved to ``densities.npz`` in the run directory, and
-:func:`draw_densities` draws them from that file alone (the report stage): in each figure the
-panels share their extent and their colour scale, with one colorbar.
+estimators' own boxes, made square. The snapshots are saved to ``densities.npz`` in the run
+directory, and :func:`draw_densities` draws them from that file alone (the report stage): in
+each figure the panels share their extent and their colour scale, with one colorbar.
 """
 
 from __future__ import annotations

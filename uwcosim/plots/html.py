@@ -211,6 +211,7 @@ def _campaign_plots(rows: list[dict]) -> list[str]:
                                      y=[r["rmse_position_m"] for r in rs],
                                      mode="lines+markers", name=est))
         fig.update_layout(title=f"Position RMSE of each run: {variant}", xaxis_title="run",
+                          xaxis_tickformat="d",
                           yaxis_title="position RMSE (m)", yaxis_type="log")
         out.append(_plot(fig, f"plot-per-run-{i}", 420))
     fig = go.Figure()

@@ -342,9 +342,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    level = logging.WARNING + 10 * (args.quiet - args.verbose)
-    logging.basicConfig(level=max(logging.DEBUG, min(level, logging.ERROR)),
-                        format="%(levelname)s %(name)s: %(message)s")
+    level = max(logging.DEBUG, min(logging.WARNING + 10 * (args.quiet - args.verbose),
+                                   logging.ERROR))
+    logging.basicConfig(format="%(levelname)s %(name)s: %(message)s")
+    logging.getLogger().setLevel(level)
     try:
         return int(args.func(args) or 0)
     except UwcosimError as exc:

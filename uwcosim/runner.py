@@ -201,6 +201,8 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
         "interrupted" if isinstance(failure, RunInterrupted) else "failed")
     summary = summarize(master, bank, status, str(failure or ""), log_path)
     summary["scenario_file"] = str(loaded.path)
+    if getattr(master, "noise_free", None):
+        summary["notes"] = master.noise_free_notes()
     if snapshots is not None:
         snapshots.save(out_dir / "densities.npz", list(model.state_names))
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2, sort_keys=True))

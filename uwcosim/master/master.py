@@ -202,15 +202,21 @@ class Master:
 
     def _absent_inputs(self, signals: list[str]) -> list[str]:
         """The process-noise roles (``w_*`` inputs of the vehicle roles) among ``signals`` that
-        their FMU, a vehicle, does not have; a typo of any other name stays an error."""
+        their FMU, a vehicle with no input besides its roles, does not have. A typo, or a
+        vehicle with inputs it could take the noise on (unmapped), stays an error."""
         out = []
         for sig in signals:
             fmu, _, var = sig.partition(".")
             f = self.spec.fmus.get(fmu)
             role = (f.role or (fmu if fmu in ROLES else None)) if f is not None else None
-            spec = ROLES.get(role, {}).get(var) if role else None
-            if (spec is not None and var.startswith("w_") and spec[0] == "input"
-                    and not spec[2] and var not in self.adapters[fmu].variables):
+            roles = ROLES.get(role, {}) if role else {}
+            spec = roles.get(var)
+            if spec is None or not var.startswith("w_") or spec[0] != "input" or spec[2]:
+                continue
+            variables = self.adapters[fmu].variables
+            other_inputs = [n for n, v in variables.items()
+                            if v.causality == "input" and n not in roles]
+            if var not in variables and not other_inputs:
                 out.append(sig)
         return out
 

@@ -124,3 +124,19 @@ def test_a_wheel_alone_runs_the_demo(project_fmus, tmp_path):
         "AUVKinematics.fmu", "DVL.fmu", "DepthSounder.fmu"}
     assert (work / "runs" / "demo" / "report.md").is_file()
     assert sorted(p.name for p in work.iterdir()) == ["runs"]
+
+
+def test_the_commands_of_the_docs_parse():
+    """Every ``$ uwcosim ...`` line of the README and docs/bring_your_own_fmu.md is valid."""
+    import shlex
+
+    parser = build_parser()
+    lines = []
+    for doc in (ROOT / "README.md", ROOT / "docs" / "bring_your_own_fmu.md"):
+        for line in doc.read_text().splitlines():
+            line = line.strip()
+            if line.startswith("$ uwcosim "):
+                lines.append(line[2:])
+    assert len(lines) >= 6
+    for line in lines:
+        parser.parse_args(shlex.split(line)[1:])

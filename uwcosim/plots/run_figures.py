@@ -36,6 +36,21 @@ def _final_stretch(cols, truth_names, est_names, states, frac: float = 0.1):
     return (cx - half, cx + half, cy - half, cy + half), k0
 
 
+INSET = 0.37  # size of the zoomed inset (axes fraction)
+
+
+def _inset_corner(tx, ty, lims) -> tuple[float, float]:
+    """Lower-left corner (axes fraction) of the inset: the corner that hides the fewest points
+    of the track, its tick labels included (kept inside the main axes)."""
+    x0, x1, y0, y1 = lims
+    fx = (np.asarray(tx) - x0) / (x1 - x0 or 1.0)
+    fy = (np.asarray(ty) - y0) / (y1 - y0 or 1.0)
+    corners = [(0.1, 0.6), (0.6, 0.6), (0.1, 0.07), (0.6, 0.07)]
+    hidden = [np.count_nonzero((fx > cx - 0.1) & (fx < cx + INSET + 0.01) & (fy > cy - 0.08)
+                               & (fy < cy + INSET + 0.01)) for cx, cy in corners]
+    return corners[int(np.argmin(hidden))]
+
+
 def trajectory_figure(cols, truth_names, est_names, states, bathy, path: Path) -> Path:
     """Track and estimates over the map, a colorbar the height of the axes and an inset that
     zooms on the last 10% of the run (at map scale the estimates hide under the truth)."""
@@ -71,10 +86,7 @@ def trajectory_figure(cols, truth_names, est_names, states, bathy, path: Path) -
     ax.set_ylabel("y (m)")
     box, k0 = _final_stretch(cols, truth_names, est_names, states)
     if box is not None:
-        # the inset sits in the corner farthest from the end of the track
-        fx = (tx[-1] - x0) / (x1 - x0) if x1 > x0 else 0.5
-        fy = (ty[-1] - y0) / (y1 - y0) if y1 > y0 else 0.5
-        ins = ax.inset_axes([0.02 if fx > 0.5 else 0.56, 0.02 if fy > 0.5 else 0.56, 0.42, 0.42])
+        ins = ax.inset_axes([*_inset_corner(tx, ty, (x0, x1, y0, y1)), INSET, INSET])
         ins.set_facecolor("white")
         ins.plot(tx[k0:], ty[k0:], "k-", lw=2)
         for line, name in zip(lines[1:], est_names):

@@ -19,21 +19,23 @@ import numpy as np  # noqa: E402
 from uwcosim.evaluation.metrics import position_velocity_indices  # noqa: E402
 
 
-def _final_stretch(cols, truth_names, est_names, states, frac: float = 0.1):
-    """Bounding box of the truth and the estimates over the last ``frac`` of the run."""
+def _end_window(cols, truth_names, est_names, states):
+    """The inset's square window: centred on the truth at the last step, half-width 3 times
+    the median over the estimators of their largest position error over the last 5% of the
+    run (at least 10 m): the estimates separate from the truth, an outlier (dead reckoning)
+    may leave the window."""
     ix, iy = position_velocity_indices(states)[0]
-    n = cols["time"].size
-    k0 = max(0, n - max(10, int(frac * n)))
-    xs = [cols[truth_names[ix]][k0:]] + [cols[f"est.{e}.{states[ix]}"][k0:] for e in est_names]
-    ys = [cols[truth_names[iy]][k0:]] + [cols[f"est.{e}.{states[iy]}"][k0:] for e in est_names]
-    x, y = np.concatenate(xs), np.concatenate(ys)
-    ok = np.isfinite(x) & np.isfinite(y)
-    if not ok.any():
-        return None, k0
-    x0, x1, y0, y1 = x[ok].min(), x[ok].max(), y[ok].min(), y[ok].max()
-    half = max(x1 - x0, y1 - y0, 10.0) * 0.6
-    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
-    return (cx - half, cx + half, cy - half, cy + half), k0
+    tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
+    n = tx.size
+    k0 = max(0, n - max(5, n // 20))
+    worst = [np.nanmax(np.hypot(cols[f"est.{e}.{states[ix]}"][k0:] - tx[k0:],
+                                cols[f"est.{e}.{states[iy]}"][k0:] - ty[k0:]), initial=np.nan)
+             for e in est_names]
+    worst = np.array([w for w in worst if np.isfinite(w)])
+    if not np.isfinite(tx[-1]) or not np.isfinite(ty[-1]):
+        return None
+    half = max(3.0 * float(np.median(worst)) if worst.size else 0.0, 10.0)
+    return tx[-1] - half, tx[-1] + half, ty[-1] - half, ty[-1] + half
 
 
 INSET = 0.37  # size of the zoomed inset (axes fraction)
@@ -53,19 +55,22 @@ def _inset_corner(tx, ty, lims) -> tuple[float, float]:
 
 def trajectory_figure(cols, truth_names, est_names, states, bathy, path: Path) -> Path:
     """Track and estimates over the map, a colorbar the height of the axes and an inset that
-    zooms on the last 10% of the run (at map scale the estimates hide under the truth)."""
+    zooms on the end of the run (at map scale the estimates hide under the truth)."""
     from mpl_toolkits.axes_grid1 import make_axes_locatable
 
-    fig, ax = plt.subplots(figsize=(7.5, 6.5), dpi=110)
     ix, iy = position_velocity_indices(states)[0]
     tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
     pad = 1500.0 if bathy is not None else 0.1 * max(np.ptp(tx), np.ptp(ty), 10.0)
     x0, x1 = np.nanmin(tx) - pad, np.nanmax(tx) + pad
     y0, y1 = np.nanmin(ty) - pad, np.nanmax(ty) + pad
-    ax.set_aspect("equal")
     if bathy is not None:
         xmin, xmax, ymin, ymax = bathy.extent
         x0, x1, y0, y1 = max(xmin, x0), min(xmax, x1), max(ymin, y0), min(ymax, y1)
+    # the figure takes the shape of the view (equal axes): no empty bands around it
+    ratio = float(np.clip((y1 - y0) / (x1 - x0), 0.45, 1.3)) if x1 > x0 else 1.0
+    fig, ax = plt.subplots(figsize=(7.5, 5.9 * ratio + 1.5), dpi=110)
+    ax.set_aspect("equal")
+    if bathy is not None:
         GX, GY = np.meshgrid(np.linspace(x0, x1, 200), np.linspace(y0, y1, 200))
         D = bathy.depth(GX.ravel(), GY.ravel()).reshape(GX.shape)
         im = ax.contourf(GX, GY, D, levels=30, cmap="viridis_r")
@@ -84,26 +89,26 @@ def trajectory_figure(cols, truth_names, est_names, states, bathy, path: Path) -
         y0, y1 = ax.get_ylim()
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    box, k0 = _final_stretch(cols, truth_names, est_names, states)
+    box = _end_window(cols, truth_names, est_names, states)
     if box is not None:
         ins = ax.inset_axes([*_inset_corner(tx, ty, (x0, x1, y0, y1)), INSET, INSET])
         ins.set_facecolor("white")
-        ins.plot(tx[k0:], ty[k0:], "k-", lw=2)
+        ins.plot(tx, ty, "k-", lw=2)
+        ins.plot(tx[-1], ty[-1], "ko", ms=4)
         for line, name in zip(lines[1:], est_names):
-            ins.plot(cols[f"est.{name}.{states[ix]}"][k0:], cols[f"est.{name}.{states[iy]}"][k0:],
+            ins.plot(cols[f"est.{name}.{states[ix]}"], cols[f"est.{name}.{states[iy]}"],
                      lw=1, color=line.get_color())
         ins.set_xlim(box[0], box[1])
         ins.set_ylim(box[2], box[3])
         ins.set_aspect("equal")
         ins.tick_params(labelsize=6)
-        ins.text(0.03, 0.97, f"zoom: last {cols['time'][-1] - cols['time'][k0]:g} s",
+        ins.text(0.03, 0.97, f"zoom: t = {cols['time'][-1]:g} s",
                  transform=ins.transAxes, va="top", fontsize=7,
                  bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8})
         ax.indicate_inset_zoom(ins, edgecolor="0.2")
-    ax.legend(handles=lines, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=4,
-              fontsize=7, frameon=False)
     ax.set_title("Trajectory and estimates")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.4 / fig.get_figheight(), 1, 1))
+    fig.legend(handles=lines, loc="lower center", ncol=4, fontsize=7, frameon=False)
     fig.savefig(path)
     plt.close(fig)
     return path

@@ -165,3 +165,9 @@ def test_build_hint_only_for_the_projects_own_fmus(tmp_path):
     with pytest.raises(FMUError) as exc:
         read_description(tmp_path / "ThirdPartyVehicle.fmu")
     assert str(exc.value) == f"{tmp_path / 'ThirdPartyVehicle.fmu'}: FMU not found"
+
+
+def test_report_of_a_campaign_without_results(tmp_path, capsys):
+    (tmp_path / "results").mkdir()
+    assert main(["report", str(tmp_path), "--html"]) == 1
+    assert "no run results to report" in capsys.readouterr().err

@@ -18,6 +18,8 @@ def report_campaign(campaign_dir: str | Path, out: str | Path | None = None,
     out = Path(out) if out is not None else campaign_dir
     out.mkdir(parents=True, exist_ok=True)
     summary = collect(campaign_dir, figures=True, out=out)
+    if not summary.get("runs"):
+        raise UwcosimError(f"{campaign_dir / 'results'}: no run results to report")
     path = out / "report.md"
     if html:
         from uwcosim.plots.html import campaign_html

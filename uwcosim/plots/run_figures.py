@@ -69,7 +69,7 @@ def trajectory_figure(cols, truth_names, est_names, states, bathy, path: Path) -
     # the figure takes the shape of the view (equal axes): no empty bands around it
     ratio = float(np.clip((y1 - y0) / (x1 - x0), 0.45, 1.3)) if x1 > x0 else 1.0
     fig, ax = plt.subplots(figsize=(7.5, 5.9 * ratio + 1.5), dpi=110)
-    ax.set_aspect("equal")
+    ax.set_aspect("equal", adjustable="box" if bathy is not None else "datalim")
     if bathy is not None:
         GX, GY = np.meshgrid(np.linspace(x0, x1, 200), np.linspace(y0, y1, 200))
         D = bathy.depth(GX.ravel(), GY.ravel()).reshape(GX.shape)
@@ -84,7 +84,8 @@ def trajectory_figure(cols, truth_names, est_names, states, bathy, path: Path) -
     if bathy is not None:
         ax.set_xlim(x0, x1)
         ax.set_ylim(y0, y1)
-    else:
+    else:  # no map: the data limits grow to fill the axes
+        ax.apply_aspect()
         x0, x1 = ax.get_xlim()
         y0, y1 = ax.get_ylim()
     ax.set_xlabel("x (m)")

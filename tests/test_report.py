@@ -155,6 +155,7 @@ def test_set_paths_are_relative_to_the_current_folder(project_fmus, tmp_path, mo
     # without a base (campaign specs, the library): relative to the scenario file, as before
     lib = load_scenario(SCENARIO, ["fmus.dvl.path=dvl.fmu"])
     assert lib.resolve(lib.spec.fmus["dvl"].path) == SCENARIO.parent / "dvl.fmu"
+    assert lib.overrides == (f'fmus.dvl.path="{SCENARIO.parent / "dvl.fmu"}"',)
 
 
 def test_build_hint_only_for_the_projects_own_fmus(tmp_path):

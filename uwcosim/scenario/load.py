@@ -147,14 +147,16 @@ def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
 
     ``overrides_base``: the folder that relative paths in ``overrides`` are relative to (the
     command line passes the current folder); by default they are relative to the scenario file,
-    like the paths written in it.
+    like the paths written in it. Either way they are recorded as absolute paths.
     """
     path = Path(path)
     where = str(path)
     if not path.is_file():
         raise ScenarioError(f"{where}: scenario file not found")
-    if overrides_base is not None:
-        overrides = absolute_path_overrides(overrides, Path(overrides_base), where)
+    # recorded with absolute paths, so that the run's log says which files it used
+    overrides = absolute_path_overrides(
+        overrides, Path(overrides_base) if overrides_base is not None else path.resolve().parent,
+        where)
     text = path.read_text(encoding="utf-8")
     try:
         data = tomllib.loads(text)

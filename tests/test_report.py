@@ -172,3 +172,21 @@ def test_report_of_a_campaign_without_results(tmp_path, capsys):
     (tmp_path / "results").mkdir()
     assert main(["report", str(tmp_path), "--html"]) == 1
     assert "no run results to report" in capsys.readouterr().err
+
+
+def test_report_of_an_interrupted_run(project_fmus, tmp_path, capsys):
+    """A run stopped by Ctrl-C at t=30 keeps its log; the report stage makes its report."""
+    from uwcosim.errors import RunInterrupted
+
+    def interrupt(master):
+        if master.k == 30:
+            raise KeyboardInterrupt
+
+    with pytest.raises(RunInterrupted):
+        run_scenario(load_scenario(SCENARIO, ["run.duration=100"]), tmp_path, progress=interrupt)
+    assert not (tmp_path / "report.md").exists()
+    assert main(["report", str(tmp_path), "--html"]) == 0
+    text = (tmp_path / "report.md").read_text()
+    assert "status interrupted" in text and "| ekf |" in text
+    for f in (*FIGURES, "report.html"):
+        assert (tmp_path / f).is_file(), f

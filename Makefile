@@ -5,9 +5,9 @@ PY     := $(VENV)/bin/python
 UWC    := $(VENV)/bin/uwcosim
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test fmus lint bench baselines clean
+.PHONY: demo test fmus lint bench baselines clean chromium
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test]'
@@ -19,7 +19,14 @@ fmus: $(STAMP)
 demo: fmus
 	$(UWC) run scenarios/tan_terrain.toml --out runs/demo
 
-test: fmus
+# the HTML report tests open the page in a real headless Chromium (Debian's package)
+chromium:
+	@command -v chromium >/dev/null || command -v chromium-browser >/dev/null || \
+	  { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && \
+	    apt-get install -y -q chromium >/dev/null; } || \
+	  echo "chromium not installed: the HTML report browser tests will be skipped"
+
+test: fmus chromium
 	$(PY) -m pytest -q
 
 baselines: fmus

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import SCENARIOS
 from uwcosim.master.master import Master
 from uwcosim.models.bathymetry import synthetic_bathymetry
 from uwcosim.runlog import read_log
@@ -146,7 +147,8 @@ def test_summary_and_timing(tan, tmp_path):
     assert {"fmu.vehicle_s", "fmu.dvl_s", "fmu.sounder_s", "master_s"} <= set(s["timing"])
     for f in ("trajectory.png", "position_error.png", "report.md", "summary.json"):
         assert (tmp_path / f).is_file()
-    assert "uwcosim run tan_terrain.toml --seed 1" in (tmp_path / "report.md").read_text()
+    assert (f"uwcosim run {SCENARIOS / 'tan_terrain.toml'} --seed 1 --set run.duration=300"
+            in (tmp_path / "report.md").read_text())
 
 
 def test_lost_measurement_scenario_through_the_cv_fmu(project_fmus, tmp_path):

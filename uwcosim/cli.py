@@ -1,29 +1,26 @@
 """Command-line interface: a thin layer over the library.
 
-``uwcosim run SCENARIO [--seed N] [--out DIR] [--set key=value ...]``
+``uwcosim run SCENARIO [--seed N] [--out DIR] [--set key=value ...]``, ``uwcosim report RUN``,
+``uwcosim export RUN --csv|--mat``, ``uwcosim list estimators|scenarios|fmus``, ``uwcosim demo``,
 ``uwcosim fmu build|info|validate|check ...``, ``uwcosim regress RUN BASELINE``,
 ``uwcosim baseline update|check``, ``uwcosim campaign SPEC``, ``uwcosim verify example1``,
-``uwcosim ssp export SCENARIO [--out FILE]``.
+``uwcosim ssp export SCENARIO [--out FILE]``, ``uwcosim completion bash|zsh|tcsh``.
+Every ``--help`` shows the defaults.
 User errors are caught once here: one line on stderr, a non-zero exit status, no traceback.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import logging
 import sys
 from pathlib import Path
 
+from uwcosim import __version__
 from uwcosim.errors import UwcosimError
 
 
-def _cmd_run(args) -> int:
-    from uwcosim.runner import run_scenario
-    from uwcosim.scenario import load_scenario
-
-    loaded = load_scenario(args.scenario, args.set or [])
-    out = Path(args.out) if args.out else Path("runs") / loaded.path.stem
-    result = run_scenario(loaded, out, seed=args.seed, figures=not args.no_figures)
+def _print_result(result) -> None:
     from uwcosim.plots.run_figures import results_table
 
     if result.summary.get("estimators"):
@@ -32,6 +29,51 @@ def _cmd_run(args) -> int:
     print(f"master overhead {1e6 * t['master_overhead_per_step_s']:.1f} us/step, "
           f"FMUs {1e6 * t['fmus_per_step_s']:.1f} us/step")
     print(f"run directory: {result.out_dir}")
+
+
+def _cmd_run(args) -> int:
+    from uwcosim.runner import run_scenario
+    from uwcosim.scenario import load_scenario
+
+    loaded = load_scenario(args.scenario, args.set or [], overrides_base=Path.cwd())
+    out = Path(args.out) if args.out else Path("runs") / loaded.path.stem
+    _print_result(run_scenario(loaded, out, seed=args.seed, figures=not args.no_figures))
+    return 0
+
+
+def _cmd_demo(args) -> int:
+    from uwcosim.demo import run_demo
+
+    _print_result(run_demo(Path(args.out), args.set or [], seed=args.seed))
+    return 0
+
+
+def _cmd_export(args) -> int:
+    from uwcosim.export import export_csv, export_mat
+
+    print((export_csv if args.format == "csv" else export_mat)(args.run, args.out))
+    return 0
+
+
+def _cmd_list(args) -> int:
+    from uwcosim import catalog
+
+    print({"estimators": catalog.list_estimators, "scenarios": catalog.list_scenarios,
+           "fmus": catalog.list_fmus}[args.what]())
+    return 0
+
+
+def _cmd_completion(args) -> int:
+    import shtab
+
+    print(shtab.complete(build_parser(), shell=args.shell))
+    return 0
+
+
+def _cmd_report(args) -> int:
+    from uwcosim.report import report
+
+    print(report(args.run, args.out, html=args.html))
     return 0
 
 
@@ -93,6 +135,7 @@ def _cmd_baseline(args) -> int:
     )
 
     scenarios = [Path(s) for s in args.scenarios] or shipped_scenarios(args.scenario_dir)
+    print(f"baselines: {args.dir}", file=sys.stderr)
     bad = 0
     for sc in scenarios:
         if args.baseline_command == "update":
@@ -115,16 +158,11 @@ def _cmd_verify(args) -> int:
     return 0
 
 
-def _cmd_summary(args) -> int:
-    print(json.dumps(json.loads(Path(args.run, "summary.json").read_text()), indent=2))
-    return 0
-
-
 def _cmd_ssp_export(args) -> int:
     from uwcosim.scenario import load_scenario
     from uwcosim.ssp.export import export_ssp
 
-    loaded = load_scenario(args.scenario, args.set or [])
+    loaded = load_scenario(args.scenario, args.set or [], overrides_base=Path.cwd())
     out = Path(args.out) if args.out else Path(f"{loaded.path.stem}.ssp")
     path, notes = export_ssp(loaded, out)
     for note in notes:
@@ -148,36 +186,101 @@ def _cmd_campaign(args) -> int:
     return 1 if summary.get("failed") else 0
 
 
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows ``(default: X)`` after every help text, except for flags and unset (None)."""
+
+    def _get_help_string(self, action) -> str:
+        text = action.help or ""
+        if ("default" in text or action.default in (None, False, argparse.SUPPRESS)
+                or isinstance(action, argparse._VersionAction)):
+            return text
+        return super()._get_help_string(action)
+
+
+def walk_parsers(parser: argparse.ArgumentParser):
+    """The parser and every sub-parser under it (for the formatter and the tests)."""
+    yield parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in dict.fromkeys(action.choices.values()):
+                yield from walk_parsers(sub)
+
+
+SET_HELP = ("override any scenario key with a TOML value, e.g. --set run.duration=100 "
+            "(repeatable); a relative file path given here is relative to the current folder, "
+            "paths written in the scenario file are relative to that file")
+
+
 def build_parser() -> argparse.ArgumentParser:
+    from uwcosim.paths import baselines_dir, scenarios_dir
+
     p = argparse.ArgumentParser(prog="uwcosim", description=__doc__.splitlines()[0])
-    sub = p.add_subparsers(dest="command", required=True)
+    p.add_argument("--version", action="version", version=f"uwcosim {__version__}",
+                   help="print the version and exit")
+    p.add_argument("-v", "--verbose", action="count", default=0,
+                   help="more log messages (-v info, -vv debug)")
+    p.add_argument("-q", "--quiet", action="count", default=0,
+                   help="fewer log messages (errors only)")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     r = sub.add_parser("run", help="run a scenario (a TOML file, or an .ssp alone: a plain "
                        "co-simulation)")
     r.add_argument("scenario", help="scenario .toml, or an SSP file .ssp")
     r.add_argument("--seed", type=int, default=None, help="override run.seed")
     r.add_argument("--out", default=None, help="run directory (default runs/<scenario name>)")
-    r.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override any scenario key, e.g. --set run.duration=100")
+    r.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
     r.add_argument("--no-figures", action="store_true", help="skip figures and report")
     r.set_defaults(func=_cmd_run)
 
+    rp = sub.add_parser("report", help="rebuild the figures and report.md of an existing run "
+                        "or campaign directory from its files alone")
+    rp.add_argument("run", help="run directory (log.parquet, summary.json, map.bin) or "
+                    "campaign directory (results/)")
+    rp.add_argument("--out", default=None, help="output folder (default: the directory itself)")
+    rp.add_argument("--html", action="store_true",
+                    help="also write report.html: one self-contained page, interactive plots")
+    rp.set_defaults(func=_cmd_report)
+
+    e = sub.add_parser("export", help="export a run's log to CSV or MATLAB .mat")
+    e.add_argument("run", help="run directory or .parquet log")
+    fmt = e.add_mutually_exclusive_group(required=True)
+    fmt.add_argument("--csv", dest="format", action="store_const", const="csv",
+                     help="CSV, one row per step (pyarrow's writer)")
+    fmt.add_argument("--mat", dest="format", action="store_const", const="mat",
+                     help="MATLAB v5 .mat: data, columns, log struct, metadata")
+    e.add_argument("--out", default=None,
+                   help="output file (default: the log's path with .csv or .mat)")
+    e.set_defaults(func=_cmd_export)
+
+    ls = sub.add_parser("list", help="list estimators (with settings and defaults), the shipped "
+                        "scenarios or the project's FMUs")
+    ls.add_argument("what", choices=["estimators", "scenarios", "fmus"], help="what to list")
+    ls.set_defaults(func=_cmd_list)
+
+    d = sub.add_parser("demo", help="build the FMUs into the user cache folder "
+                       "($XDG_CACHE_HOME/uwcosim) and run the TAN scenario")
+    d.add_argument("--out", default="runs/demo", help="run directory")
+    d.add_argument("--seed", type=int, default=None, help="override run.seed")
+    d.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
+    d.set_defaults(func=_cmd_demo)
+
     f = sub.add_parser("fmu", help="build and inspect FMUs")
-    fs = f.add_subparsers(dest="fmu_command", required=True)
+    fs = f.add_subparsers(dest="fmu_command", required=True, metavar="COMMAND")
     b = fs.add_parser("build", help="build the project's FMUs into fmus/")
-    b.add_argument("names", nargs="*")
-    b.add_argument("--out", default="fmus")
-    b.add_argument("--force", action="store_true")
+    b.add_argument("names", nargs="*", help="models or archive stems (default: all), "
+                   "see 'uwcosim list fmus'")
+    b.add_argument("--out", default="fmus", help="output folder")
+    b.add_argument("--force", action="store_true", help="rebuild even if up to date")
     b.set_defaults(func=_cmd_fmu_build)
     i = fs.add_parser("info", help="variables and capabilities of an FMU")
-    i.add_argument("fmu")
+    i.add_argument("fmu", help="FMU archive (.fmu)")
     i.set_defaults(func=_cmd_fmu_info)
     v = fs.add_parser("validate", help="validate an FMU (exit 1 if it has problems)")
-    v.add_argument("fmu")
+    v.add_argument("fmu", help="FMU archive (.fmu)")
     v.set_defaults(func=_cmd_fmu_validate)
     k = fs.add_parser("check", help="can this FMU play a role? validation, capabilities, "
                       "variable map, smoke run (exit 1 if incompatible)")
-    k.add_argument("fmu")
+    k.add_argument("fmu", help="FMU archive (.fmu)")
     k.add_argument("--role", choices=["vehicle"], default=None,
                    help="check the roles of this part (and smoke-run a vehicle)")
     k.add_argument("--map", default=None, help="variable map (TOML: role = {var=..., unit=...})")
@@ -194,16 +297,16 @@ def build_parser() -> argparse.ArgumentParser:
                       "parameters, default experiment) as an .ssp")
     e.add_argument("scenario", help="scenario .toml (or .ssp)")
     e.add_argument("--out", default=None, help="output file (default: ./<scenario name>.ssp)")
-    e.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override any scenario key first, as for 'run'")
+    e.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
     e.set_defaults(func=_cmd_ssp_export)
 
     c = sub.add_parser("campaign", help="Monte Carlo campaign (local processes or Dask)")
-    c.add_argument("spec")
+    c.add_argument("spec", help="campaign spec (TOML)")
     c.add_argument("--runs", type=int, default=None, help="runs per variant (default: spec)")
     c.add_argument("--workers", type=int, default=None, help="local processes (default: cores)")
     c.add_argument("--scheduler", default=None, help="Dask scheduler, e.g. tcp://host:8786")
-    c.add_argument("--out", default=None, help="campaign directory")
+    c.add_argument("--out", default=None,
+                   help="campaign directory (default: runs/campaign_<spec name>)")
     c.add_argument("--resume", action="store_true", help="skip runs already finished")
     c.set_defaults(func=_cmd_campaign)
 
@@ -230,13 +333,15 @@ def build_parser() -> argparse.ArgumentParser:
     g.set_defaults(func=_cmd_regress)
 
     bl = sub.add_parser("baseline", help="golden baselines of the shipped scenarios")
-    bls = bl.add_subparsers(dest="baseline_command", required=True)
+    bls = bl.add_subparsers(dest="baseline_command", required=True, metavar="COMMAND")
     for name, text in (("update", "regenerate the baselines (a deliberate change)"),
                        ("check", "run the scenarios and compare with their baselines")):
         q = bls.add_parser(name, help=text)
-        q.add_argument("scenarios", nargs="*", help="default: every scenarios/*.toml")
-        q.add_argument("--dir", default="tests/baselines", help="baseline folder")
-        q.add_argument("--scenario-dir", default="scenarios")
+        q.add_argument("scenarios", nargs="*", help="scenario files (default: every *.toml "
+                       "of --scenario-dir)")
+        q.add_argument("--dir", default=str(baselines_dir()), help="baseline folder")
+        q.add_argument("--scenario-dir", default=str(scenarios_dir()),
+                       help="folder of the shipped scenarios")
         if name == "update":
             q.add_argument("--set", action="append", metavar="KEY=VALUE",
                            help="extra override (after run.duration=300)")
@@ -246,14 +351,26 @@ def build_parser() -> argparse.ArgumentParser:
         q.set_defaults(func=_cmd_baseline)
 
     ver = sub.add_parser("verify", help="verification examples")
-    ver.add_argument("example", choices=["example1"])
-    ver.add_argument("--out", default=None)
+    ver.add_argument("example", choices=["example1"], help="which example")
+    ver.add_argument("--out", default=None, help="output folder (default: runs/verify_example1)")
     ver.set_defaults(func=_cmd_verify)
+
+    comp = sub.add_parser("completion", help="print a shell completion script, e.g. "
+                          "'uwcosim completion bash > ~/.local/share/bash-completion/"
+                          "completions/uwcosim'")
+    comp.add_argument("shell", choices=["bash", "zsh", "tcsh"], help="the shell")
+    comp.set_defaults(func=_cmd_completion)
+    for parser in walk_parsers(p):
+        parser.formatter_class = _HelpFormatter
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    level = max(logging.DEBUG, min(logging.WARNING + 10 * (args.quiet - args.verbose),
+                                   logging.ERROR))
+    logging.basicConfig(format="%(levelname)s %(name)s: %(message)s")
+    logging.getLogger().setLevel(level)
     try:
         return int(args.func(args) or 0)
     except UwcosimError as exc:

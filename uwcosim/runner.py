@@ -140,6 +140,8 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
         fmu, _, par = spec.map.fmu_parameter.partition(".")
         if fmu in spec.fmus:
             overrides[fmu] = {par: str(bathy.write_coefficients(out_dir / "map.bin"))}
+    if bathy is not None and not overrides:  # the report stage reads the map from here
+        bathy.write_coefficients(out_dir / "map.bin")
     owner = master is None
     if owner:
         master = Master(loaded, seed=seed)
@@ -162,6 +164,14 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
             "seed": master.seed, "versions": package_versions(), "fmus": master.fmu_hashes(),
             "step": master.h, "start_time": master.t0,
         }
+        if bank is not None:  # what the report stage needs to read the log on its own
+            meta.update(scenario_name=spec.name, truth=list(spec.model.truth),
+                        states=list(model.state_names),
+                        measurements=list(model.measurement_names),
+                        estimators={tr.name: spec.estimators[tr.name].type
+                                    for tr in bank.tracks})
+        if bathy is not None:
+            meta["map"] = "map.bin"
         if master.variable_maps():  # third-party FMUs: roles, variables and conversions
             meta["variable_maps"] = master.variable_maps()
         logger = RunLogger(log_path, cols, flags, meta, spec.log.chunk_steps)
@@ -190,6 +200,11 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
     status = "ok" if failure is None else (
         "interrupted" if isinstance(failure, RunInterrupted) else "failed")
     summary = summarize(master, bank, status, str(failure or ""), log_path)
+    summary["scenario_file"] = str(loaded.path)
+    if getattr(master, "noise_free", None):
+        summary["notes"] = master.noise_free_notes()
+    if snapshots is not None:
+        snapshots.save(out_dir / "densities.npz", list(model.state_names))
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2, sort_keys=True))
     result = RunResult(out_dir, summary, log_path, status)
     if failure is not None:
@@ -197,9 +212,7 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
             failure.args = (f"{failure} (log up to t={master.t:g} kept in {log_path})",)
         raise failure
     if (spec.output.figures if figures is None else figures) and bank:
-        from uwcosim.plots.run_figures import write_report
+        from uwcosim.report import report_run
 
-        extra = snapshots.draw(out_dir, list(model.state_names)) if snapshots else []
-        write_report(result, bathy, model, list(spec.model.truth),
-                     [tr.name for tr in bank.tracks], extra)
+        report_run(out_dir)
     return result

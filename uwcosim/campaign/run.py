@@ -47,9 +47,11 @@ def run_campaign(campaign: LoadedCampaign, out: Path, runs: int | None = None,
     return summary
 
 
-def collect(out: Path, figures: bool = True) -> dict:
-    """Aggregate ``out/results`` into ``runs.parquet``, ``table.md``/``.csv`` and figures."""
-    rows = run_rows(read_records(out / "results"))
+def collect(campaign_dir: Path, figures: bool = True, out: Path | None = None) -> dict:
+    """Aggregate ``campaign_dir/results`` into ``runs.parquet``, ``table.md``/``.csv`` and
+    figures, written to ``out`` (default: the campaign directory)."""
+    rows = run_rows(read_records(Path(campaign_dir) / "results"))
+    out = Path(campaign_dir) if out is None else Path(out)
     if not rows:
         return {"runs": 0, "table": []}
     write_runs_parquet(rows, out / "runs.parquet")

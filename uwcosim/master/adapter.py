@@ -34,6 +34,15 @@ def sha256_file(path: Path) -> str:
     return h.hexdigest()
 
 
+def _build_hint(path: Path) -> str:
+    """The 'uwcosim fmu build' hint, for the project's own FMUs only."""
+    from uwcosim.fmu.build import FMI_VERSIONS, archive_name
+    from uwcosim.fmu.specs import MODELS
+
+    own = {archive_name(m, v) for m in MODELS for v in FMI_VERSIONS}
+    return " (build the project's FMUs with 'uwcosim fmu build')" if path.name in own else ""
+
+
 def read_description(path: Path):
     """Model description of an FMU archive, with one-line errors for the usual faults."""
     import fmpy
@@ -41,9 +50,7 @@ def read_description(path: Path):
 
     path = Path(path)
     if not path.is_file():
-        raise FMUError(
-            f"{path}: FMU not found (build the project's FMUs with 'uwcosim fmu build')"
-        )
+        raise FMUError(f"{path}: FMU not found{_build_hint(path)}")
     try:
         with zipfile.ZipFile(path) as zf:
             bad = zf.testzip()

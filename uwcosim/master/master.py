@@ -139,7 +139,14 @@ class Master:
             self.slots[f"controls.{cname}"] = len(self.slots)
             self._check_input(c.target, f"controls.{cname}.target", drivers, f"controls.{cname}")
         self.noise_sources = []
+        #: noise sources none of whose targets the FMU has (a third-party vehicle without
+        #: process-noise inputs): the truth runs without them, the filters' model keeps them
+        self.noise_free: dict[str, str] = {}
         for nname, nz in spec.noise.items():
+            absent = self._absent_inputs(nz.targets)
+            if len(absent) == len(nz.targets):
+                self.noise_free[nname] = absent[0].partition(".")[0]
+                continue
             for i, tgt in enumerate(nz.targets):
                 key = f"noise.{nname}.{i}"
                 self.slots[key] = len(self.slots)
@@ -210,6 +217,35 @@ class Master:
             raise ScenarioError(self._no_variable(fmu, var, key))
         return v
 
+    def _absent_inputs(self, signals: list[str]) -> list[str]:
+        """The process-noise roles (``w_*`` inputs of the vehicle roles) among ``signals`` that
+        their FMU, a vehicle with no input besides its roles, does not have. A typo, or a
+        vehicle with inputs it could take the noise on (unmapped), stays an error."""
+        out = []
+        for sig in signals:
+            fmu, _, var = sig.partition(".")
+            f = self.spec.fmus.get(fmu)
+            role = (f.role or (fmu if fmu in ROLES else None)) if f is not None else None
+            roles = ROLES.get(role, {}) if role else {}
+            spec = roles.get(var)
+            if spec is None or not var.startswith("w_") or spec[0] != "input" or spec[2]:
+                continue
+            variables = self.adapters[fmu].variables
+            other_inputs = [n for n, v in variables.items()
+                            if v.causality == "input" and n not in roles]
+            if var not in variables and not other_inputs:
+                out.append(sig)
+        return out
+
+    def noise_free_notes(self) -> list[str]:
+        """One line per noise source the truth ran without (see :attr:`noise_free`)."""
+        q = ("model.q_psd" if self.spec.model is not None and self.spec.model.q_psd is not None
+             else "model.q_psd, which defaults to these PSDs")
+        return [f"the truth ran noise-free: FMU {fmu!r} has no inputs "
+                f"{', '.join(t.partition('.')[2] for t in self.spec.noise[n].targets)} for "
+                f"noise {n!r}; the filters' process noise is {q}"
+                for n, fmu in self.noise_free.items()]
+
     def _slot(self, signal: str, key: str) -> int:
         if signal not in self.slots:
             v = self._variable(signal, key)
@@ -255,6 +291,8 @@ class Master:
                 cols.append(ctl.samples(times)[:, None])
                 slots.append([self.slots[f"controls.{cname}"]])
         for nname, nz in self.spec.noise.items():
+            if nname in self.noise_free:
+                continue
             cols.append(white_noise(stream(self.seed, f"noise:{nname}"), n, nz.psd, self.h))
             slots.append([self.slots[f"noise.{nname}.{i}"] for i in range(len(nz.targets))])
         for sname, s in self.spec.sensors.items():

@@ -152,6 +152,29 @@ class Bathymetry:
         return Path(path)
 
 
+def read_coefficients(path: str | Path) -> Bathymetry:
+    """The map of a :meth:`Bathymetry.write_coefficients` file (a run directory's ``map.bin``).
+
+    The depth grid is the spline evaluated at the nodes (weights 1/6, 4/6, 1/6 per axis), from
+    which the same coefficients follow again up to rounding.
+    """
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+        magic, nx, ny, x0, y0, dx, dy = _HEADER.unpack_from(raw)
+    except (OSError, struct.error) as exc:
+        raise MapError(f"{path}: cannot read the map coefficients ({exc})") from None
+    n = (ny + 2 * PAD) * (nx + 2 * PAD)
+    if magic != MAGIC or len(raw) != _HEADER.size + 8 * n:
+        raise MapError(f"{path}: not a uwcosim map coefficient file (expected {MAGIC.decode()}, "
+                       f"{n} coefficients)")
+    c = np.frombuffer(raw, dtype="<f8", offset=_HEADER.size).reshape(ny + 2 * PAD, nx + 2 * PAD)
+    w = np.array([1.0, 4.0, 1.0]) / 6.0
+    rows = sum(w[b] * c[PAD - 1 + b:PAD - 1 + b + ny, :] for b in range(3))
+    depth = sum(w[a] * rows[:, PAD - 1 + a:PAD - 1 + a + nx] for a in range(3))
+    return Bathymetry(x0, y0, dx, dy, depth)
+
+
 def synthetic_bathymetry(
     seed: int,
     extent: tuple[float, float, float, float] = (0.0, 25_000.0, 0.0, 25_000.0),

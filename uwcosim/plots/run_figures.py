@@ -2,8 +2,8 @@
 
 - ``trajectory.png``: truth and estimates over the bathymetry map;
 - ``position_error.png``: position error of each estimator against time with its 3-sigma bound;
-- ``position_error_norm.png``: the error norm per step (seed 001 eq. 43, "RMSE(k)");
-- ``report.md``: the result table and the figures, with the command that reproduces them.
+- ``position_error_norm.png``: the position error norm per step of the run;
+- :func:`results_table`: the result table of ``report.md`` (written by :mod:`uwcosim.report`).
 """
 
 from __future__ import annotations
@@ -17,70 +17,148 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from uwcosim.evaluation.metrics import position_velocity_indices  # noqa: E402
-from uwcosim.runlog import read_log  # noqa: E402
+
+
+def _end_window(cols, truth_names, est_names, states):
+    """The inset's square window: centred on the truth at the last step, half-width 3 times
+    the median over the estimators of their largest position error over the last 5% of the
+    run (at least 10 m): the estimates separate from the truth, an outlier (dead reckoning)
+    may leave the window."""
+    ix, iy = position_velocity_indices(states)[0]
+    tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
+    n = tx.size
+    k0 = max(0, n - max(5, n // 20))
+    worst = [np.nanmax(np.hypot(cols[f"est.{e}.{states[ix]}"][k0:] - tx[k0:],
+                                cols[f"est.{e}.{states[iy]}"][k0:] - ty[k0:]), initial=np.nan)
+             for e in est_names]
+    worst = np.array([w for w in worst if np.isfinite(w)])
+    if not np.isfinite(tx[-1]) or not np.isfinite(ty[-1]):
+        return None
+    half = max(3.0 * float(np.median(worst)) if worst.size else 0.0, 10.0)
+    return tx[-1] - half, tx[-1] + half, ty[-1] - half, ty[-1] + half
+
+
+INSET = 0.37  # size of the zoomed inset (axes fraction)
+
+
+def _inset_corner(tx, ty, lims) -> tuple[float, float]:
+    """Lower-left corner (axes fraction) of the inset: the corner that hides the fewest points
+    of the track, its tick labels included (kept inside the main axes)."""
+    x0, x1, y0, y1 = lims
+    fx = (np.asarray(tx) - x0) / (x1 - x0 or 1.0)
+    fy = (np.asarray(ty) - y0) / (y1 - y0 or 1.0)
+    corners = [(0.1, 0.6), (0.6, 0.6), (0.1, 0.07), (0.6, 0.07)]
+    hidden = [np.count_nonzero((fx > cx - 0.1) & (fx < cx + INSET + 0.01) & (fy > cy - 0.08)
+                               & (fy < cy + INSET + 0.01)) for cx, cy in corners]
+    return corners[int(np.argmin(hidden))]
 
 
 def trajectory_figure(cols, truth_names, est_names, states, bathy, path: Path) -> Path:
-    fig, ax = plt.subplots(figsize=(7, 6), dpi=110)
+    """Track and estimates over the map, a colorbar the height of the axes and an inset that
+    zooms on the end of the run (at map scale the estimates hide under the truth)."""
+    from mpl_toolkits.axes_grid1 import make_axes_locatable
+
     ix, iy = position_velocity_indices(states)[0]
     tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
+    pad = 1500.0 if bathy is not None else 0.1 * max(np.ptp(tx), np.ptp(ty), 10.0)
+    x0, x1 = np.nanmin(tx) - pad, np.nanmax(tx) + pad
+    y0, y1 = np.nanmin(ty) - pad, np.nanmax(ty) + pad
     if bathy is not None:
-        pad = 1500.0
         xmin, xmax, ymin, ymax = bathy.extent
-        x0, x1 = max(xmin, np.nanmin(tx) - pad), min(xmax, np.nanmax(tx) + pad)
-        y0, y1 = max(ymin, np.nanmin(ty) - pad), min(ymax, np.nanmax(ty) + pad)
-        gx = np.linspace(x0, x1, 200)
-        gy = np.linspace(y0, y1, 200)
-        GX, GY = np.meshgrid(gx, gy)
+        x0, x1, y0, y1 = max(xmin, x0), min(xmax, x1), max(ymin, y0), min(ymax, y1)
+    # the figure takes the shape of the view (equal axes): no empty bands around it
+    ratio = float(np.clip((y1 - y0) / (x1 - x0), 0.45, 1.3)) if x1 > x0 else 1.0
+    fig, ax = plt.subplots(figsize=(7.5, 5.9 * ratio + 1.5), dpi=110)
+    ax.set_aspect("equal", adjustable="box" if bathy is not None else "datalim")
+    if bathy is not None:
+        GX, GY = np.meshgrid(np.linspace(x0, x1, 200), np.linspace(y0, y1, 200))
         D = bathy.depth(GX.ravel(), GY.ravel()).reshape(GX.shape)
         im = ax.contourf(GX, GY, D, levels=30, cmap="viridis_r")
-        fig.colorbar(im, ax=ax, label="depth (m)")
-    ax.plot(tx, ty, "k-", lw=2, label="truth")
+        cax = make_axes_locatable(ax).append_axes("right", size="4%", pad=0.1)
+        fig.colorbar(im, cax=cax, label="depth (m)")
+    lines = [ax.plot(tx, ty, "k-", lw=2, label="truth")[0]]
     for name in est_names:
-        ax.plot(cols[f"est.{name}.{states[ix]}"], cols[f"est.{name}.{states[iy]}"], lw=1,
-                label=name)
+        lines += ax.plot(cols[f"est.{name}.{states[ix]}"], cols[f"est.{name}.{states[iy]}"],
+                         lw=1, label=name)
     ax.plot(tx[0], ty[0], "ko")
+    if bathy is not None:
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
+    else:  # no map: the data limits grow to fill the axes
+        ax.apply_aspect()
+        x0, x1 = ax.get_xlim()
+        y0, y1 = ax.get_ylim()
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_aspect("equal")
-    ax.legend(loc="best", fontsize=8)
+    box = _end_window(cols, truth_names, est_names, states)
+    if box is not None:
+        ins = ax.inset_axes([*_inset_corner(tx, ty, (x0, x1, y0, y1)), INSET, INSET])
+        ins.set_facecolor("white")
+        ins.plot(tx, ty, "k-", lw=2)
+        ins.plot(tx[-1], ty[-1], "ko", ms=4)
+        for line, name in zip(lines[1:], est_names):
+            ins.plot(cols[f"est.{name}.{states[ix]}"], cols[f"est.{name}.{states[iy]}"],
+                     lw=1, color=line.get_color())
+        ins.set_xlim(box[0], box[1])
+        ins.set_ylim(box[2], box[3])
+        ins.set_aspect("equal")
+        ins.tick_params(labelsize=6)
+        ins.text(0.03, 0.97, f"zoom: t = {cols['time'][-1]:g} s",
+                 transform=ins.transAxes, va="top", fontsize=7,
+                 bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8})
+        ax.indicate_inset_zoom(ins, edgecolor="0.2")
     ax.set_title("Trajectory and estimates")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.4 / fig.get_figheight(), 1, 1))
+    fig.legend(handles=lines, loc="lower center", ncol=4, fontsize=7, frameon=False)
     fig.savefig(path)
     plt.close(fig)
     return path
 
 
 def error_figure(cols, truth_names, est_names, states, path: Path) -> Path:
+    """Position error (x solid, y dashed) and their 3-sigma bounds (x: hatched band, y: plain
+    band with dotted edges), one legend, the same y-scale in every panel."""
     t = cols["time"]
-    fig, axes = plt.subplots(len(est_names), 1, figsize=(8, 2.2 * len(est_names) + 0.6),
-                             dpi=110, sharex=True, squeeze=False)
+    fig, axes = plt.subplots(len(est_names), 1, figsize=(8, 2.0 * len(est_names) + 1.0),
+                             dpi=110, sharex=True, sharey=True, squeeze=False,
+                             layout="constrained")
     ix, iy = position_velocity_indices(states)[0]
     tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
+    mags = []
+    handles = None
     for ax, name in zip(axes[:, 0], est_names):
         ex = cols[f"est.{name}.{states[ix]}"] - tx
         ey = cols[f"est.{name}.{states[iy]}"] - ty
         sx = 3 * np.sqrt(cols[f"est.{name}.var.{states[ix]}"])
         sy = 3 * np.sqrt(cols[f"est.{name}.var.{states[iy]}"])
-        ax.plot(t, ex, lw=0.8, label="error x")
-        ax.plot(t, ey, lw=0.8, label="error y")
-        ax.fill_between(t, -sx, sx, color="C0", alpha=0.15, label="±3σ x")
-        ax.fill_between(t, -sy, sy, color="C1", alpha=0.15, label="±3σ y")
+        bx = ax.fill_between(t, -sx, sx, facecolor="none", edgecolor="C0", hatch="////",
+                             lw=0.0, alpha=0.5, label="±3σ x")
+        by = ax.fill_between(t, -sy, sy, color="C1", alpha=0.18, lw=0, label="±3σ y")
+        ax.plot(t, sy, "C1:", lw=0.8)
+        ax.plot(t, -sy, "C1:", lw=0.8)
+        lx, = ax.plot(t, ex, "C0-", lw=0.9, label="error x")
+        ly, = ax.plot(t, ey, "C1--", lw=0.9, label="error y")
+        handles = [lx, bx, ly, by]
+        ax.axhline(0.0, color="0.6", lw=0.5)
         ax.set_ylabel(f"{name} (m)")
-        lim = np.nanpercentile(np.abs(np.concatenate([ex, ey, sx, sy])), 99) * 1.2
-        if np.isfinite(lim) and lim > 0:
-            ax.set_ylim(-lim, lim)
-        ax.legend(loc="upper right", fontsize=7, ncol=4)
+        mags.append(np.abs(np.concatenate([ex, ey, sx, sy])))
+    lim = np.nanpercentile(np.concatenate(mags), 99) * 1.15 if mags else np.nan
+    if np.isfinite(lim) and lim > 0:
+        axes[0, 0].set_ylim(-lim, lim)
     axes[-1, 0].set_xlabel("time (s)")
-    fig.suptitle("Position error with 3-sigma bounds")
-    fig.tight_layout()
+    fig.suptitle("Position error with 3-sigma bounds (same scale in every panel)")
+    fig.legend(handles=handles, loc="outside lower center", ncol=4, fontsize=8)
     fig.savefig(path)
     plt.close(fig)
     return path
 
 
 def error_norm_figure(cols, truth_names, est_names, states, path: Path) -> Path:
-    """RMSE(k) of seed 001 eq. (43): the position error norm at each step, per estimator."""
+    """The position error norm ``|p_est(t_k) - p(t_k)|`` of this one run, per estimator.
+
+    For one run this is what seed 001 eq. (43) calls RMSE(k) (an RMSE over runs); the figure
+    is titled for what it shows.
+    """
     t = cols["time"]
     ix, iy = position_velocity_indices(states)[0]
     tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
@@ -90,8 +168,8 @@ def error_norm_figure(cols, truth_names, est_names, states, path: Path) -> Path:
         ax.plot(t, e, lw=0.8, label=name)
     ax.set_yscale("log")
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("position error (m)")
-    ax.set_title("RMSE(k): position error norm per step")
+    ax.set_ylabel("position error norm (m)")
+    ax.set_title("Position error norm per step (this run)")
     ax.legend(fontsize=8, ncol=min(4, len(est_names)))
     fig.tight_layout()
     fig.savefig(path)
@@ -107,33 +185,7 @@ def results_table(summary: dict) -> str:
         rows.append(
             f"| {name} | {m['rmse_position_m']:.2f} | {m['rmse_x_m']:.2f} | {m['rmse_y_m']:.2f} "
             f"| {m.get('rmse_velocity_mps', float('nan')):.4f} | {m['anees']:.2f} "
-            f"| {1e3 * m['time_per_step_s']:.3f} | {'yes' if m['diverged'] else 'no'} |"
+            f"| {1e3 * m.get('time_per_step_s', float('nan')):.3f} "
+            f"| {'yes' if m['diverged'] else 'no'} |"
         )
     return head + "\n".join(rows) + "\n"
-
-
-def write_report(result, bathy, model, truth: list[str], names: list[str],
-                 extra_figures: list[Path] = ()) -> Path:
-    out = Path(result.out_dir)
-    cols, meta = read_log(result.log_path)
-    states = list(model.state_names)
-    trajectory_figure(cols, truth, names, states, bathy, out / "trajectory.png")
-    error_figure(cols, truth, names, states, out / "position_error.png")
-    error_norm_figure(cols, truth, names, states, out / "position_error_norm.png")
-    s = result.summary
-    text = (
-        f"# Run report: {s['scenario']}\n\n"
-        f"Seed {s['seed']}, {s['steps']} steps of {s['step_s']:g} s. Reproduce with "
-        f"`uwcosim run {meta.get('scenario_path', 'SCENARIO')} --seed {s['seed']}`"
-        f"{''.join(' --set ' + o for o in meta.get('overrides', []))}.\n\n"
-        f"{results_table(s)}\n"
-        f"Master overhead per step: {1e6 * s['timing']['master_overhead_per_step_s']:.1f} µs; "
-        f"FMUs per step: {1e6 * s['timing']['fmus_per_step_s']:.1f} µs.\n\n"
-        "![trajectory](trajectory.png)\n\n![position error](position_error.png)\n\n"
-        "![position error norm](position_error_norm.png)\n"
-        + "".join(f"\n![{p.stem}]({p.name})\n" for p in extra_figures)
-    )
-    path = out / "report.md"
-    path.write_text(text)
-    return path
-

@@ -1,12 +1,15 @@
 """Load a scenario TOML file, apply ``--set key=value`` overrides and validate the schema.
 
-Every problem becomes one :class:`~uwcosim.errors.ScenarioError` line naming the file, the key
-and what was expected. Relative paths in a scenario are relative to the scenario file.
+Relative paths written in a scenario are relative to the scenario file; relative paths given in
+``--set`` overrides on the command line are relative to the current folder (see
+:func:`absolute_path_overrides`). Every problem becomes one
+:class:`~uwcosim.errors.ScenarioError` line naming the file, the key and what was expected.
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -121,11 +124,42 @@ def format_validation_error(
     return f"{where}: key '{key}': {msg}"
 
 
-def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> LoadedScenario:
+def _is_path_key(keys: list[str]) -> bool:
+    """``fmus.NAME.path``, ``fmus.NAME.map`` (a map file) and ``map.file`` hold file paths."""
+    return (len(keys) == 3 and keys[0] == "fmus" and keys[2] in ("path", "map")) \
+        or keys == ["map", "file"]
+
+
+def absolute_path_overrides(overrides, base: Path, where: str) -> tuple[str, ...]:
+    """``--set`` overrides with relative file paths made absolute against ``base``.
+
+    A path typed on the command line means a file relative to the current folder, not to the
+    scenario file; the rewritten override (``key="/abs/path"``) is what the run records.
+    """
+    out = []
+    for item in overrides:
+        keys, value = parse_overrides([item], where)[0]
+        if _is_path_key(keys) and isinstance(value, str) and not Path(value).is_absolute():
+            item = f"{'.'.join(keys)}={json.dumps(str((Path(base) / value).resolve()))}"
+        out.append(item)
+    return tuple(out)
+
+
+def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
+                  overrides_base: str | Path | None = None) -> LoadedScenario:
     """Read, override and validate a scenario (a TOML file, or an ``.ssp`` run alone); raise
-    ScenarioError with one line on failure."""
+    ScenarioError with one line on failure.
+
+    ``overrides_base``: the folder that relative paths in ``overrides`` are relative to (the
+    command line passes the current folder); by default they are relative to the scenario file,
+    like the paths written in it. Either way they are recorded as absolute paths.
+    """
     path = Path(path)
     where = str(path)
+    # recorded with absolute paths, so that the run's log says which files it used
+    overrides = absolute_path_overrides(
+        overrides, Path(overrides_base) if overrides_base is not None else path.resolve().parent,
+        where)
     if path.suffix.lower() == ".ssp":
         from uwcosim.ssp.scenario import load_ssp
 

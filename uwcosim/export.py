@@ -1,0 +1,95 @@
+"""Export a run's log to CSV (pyarrow's writer) or MATLAB ``.mat`` (scipy's ``savemat``).
+
+CSV: one header row with the log's column names (``time`` first, quoted), one row per
+communication step, floats with full precision, NaN as ``nan``, booleans as ``true``/``false``
+(as pyarrow writes them).
+
+MAT (version 5): ``data`` (steps x columns, booleans as 0/1), ``columns`` (the column names, a
+cell array), ``log`` (a struct with one field per column: the name with every character that is
+not a letter, digit or underscore replaced by ``_``, shortened to MATLAB's 63 characters and made
+unique with a numeric suffix) and ``metadata`` (the log's ``uwcosim`` metadata as JSON text).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+
+from uwcosim.errors import UwcosimError
+
+MATLAB_NAME_MAX = 63
+
+
+def _log_path(run: str | Path) -> Path:
+    run = Path(run)
+    path = run / "log.parquet" if run.is_dir() else run
+    if not path.is_file():
+        raise UwcosimError(f"{path}: run log not found")
+    return path
+
+
+def _read(run: str | Path):
+    path = _log_path(run)
+    try:
+        return path, pq.read_table(path)
+    except Exception as exc:  # noqa: BLE001 - pyarrow raises several types for bad files
+        raise UwcosimError(f"{path}: not a readable Parquet run log ({exc})") from None
+
+
+def matlab_names(columns: list[str]) -> list[str]:
+    """Valid, unique MATLAB identifiers for ``columns`` (see the module docstring)."""
+    out: list[str] = []
+    seen: set[str] = set()
+    for c in columns:
+        name = re.sub(r"\W", "_", c, flags=re.ASCII)
+        if not name or not name[0].isalpha():
+            name = "v_" + name
+        name = name[:MATLAB_NAME_MAX]
+        base, i = name, 1
+        while name in seen:
+            suffix = f"_{i}"
+            name = base[:MATLAB_NAME_MAX - len(suffix)] + suffix
+            i += 1
+        seen.add(name)
+        out.append(name)
+    return out
+
+
+def export_csv(run: str | Path, out: str | Path | None = None) -> Path:
+    """Write the log of ``run`` (a run directory or a ``.parquet`` log) as CSV."""
+    import pyarrow.csv as pcsv
+
+    path, table = _read(run)
+    out = Path(out) if out is not None else path.with_suffix(".csv")
+    try:
+        pcsv.write_csv(table.replace_schema_metadata(None), out)
+    except OSError as exc:
+        raise UwcosimError(f"{out}: cannot write ({exc.strerror or exc})") from None
+    return out
+
+
+def export_mat(run: str | Path, out: str | Path | None = None) -> Path:
+    """Write the log of ``run`` as a MATLAB v5 ``.mat`` file."""
+    from scipy.io import savemat
+
+    path, table = _read(run)
+    out = Path(out) if out is not None else path.with_suffix(".mat")
+    columns = table.column_names
+    arrays = [np.asarray(table.column(c).to_numpy(), dtype=float) for c in columns]
+    data = np.column_stack(arrays) if arrays else np.zeros((0, 0))
+    meta = (table.schema.metadata or {}).get(b"uwcosim", b"{}").decode()
+    content = {
+        "data": data,
+        "columns": np.array(columns, dtype=object),
+        "log": dict(zip(matlab_names(columns), arrays)),
+        "metadata": json.dumps(json.loads(meta), sort_keys=True),
+    }
+    try:
+        savemat(out, content, do_compression=True, oned_as="column")
+    except OSError as exc:
+        raise UwcosimError(f"{out}: cannot write ({exc.strerror or exc})") from None
+    return out

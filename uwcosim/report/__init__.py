@@ -1,0 +1,42 @@
+"""The report stage: figures, ``report.md`` and ``report.html`` from a run's (or a campaign's)
+files alone. ``uwcosim report PATH`` picks the kind from what the folder holds."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from uwcosim.errors import UwcosimError
+from uwcosim.report.run_report import report_run
+
+
+def report_campaign(campaign_dir: str | Path, out: str | Path | None = None,
+                    html: bool = False) -> Path:
+    """Tables, figures and ``report.md`` (and ``report.html``) of a campaign directory."""
+    from uwcosim.campaign.run import collect
+
+    campaign_dir = Path(campaign_dir)
+    out = Path(out) if out is not None else campaign_dir
+    out.mkdir(parents=True, exist_ok=True)
+    summary = collect(campaign_dir, figures=True, out=out)
+    if not summary.get("runs"):
+        raise UwcosimError(f"{campaign_dir / 'results'}: no run results to report")
+    path = out / "report.md"
+    if html:
+        from uwcosim.plots.html import campaign_html
+
+        path = campaign_html(campaign_dir, summary, out / "report.html")
+    return path
+
+
+def report(path: str | Path, out: str | Path | None = None, html: bool = False) -> Path:
+    """Report of a run directory (``log.parquet``) or a campaign directory (``results/``)."""
+    path = Path(path)
+    if (path / "log.parquet").is_file():
+        return report_run(path, out, html)
+    if (path / "results").is_dir():
+        return report_campaign(path, out, html)
+    raise UwcosimError(f"{path}: neither a run directory (no log.parquet) nor a campaign "
+                       f"directory (no results/)")
+
+
+__all__ = ["report", "report_campaign", "report_run"]

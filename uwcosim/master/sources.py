@@ -8,6 +8,7 @@ and the same scenario and seed always give the same samples.
 from __future__ import annotations
 
 import zlib
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -113,3 +114,48 @@ def loss_mask(
             state = switch[i] < spec.p_good_to_bad
     p_loss = np.where(bad, spec.loss_bad, spec.loss_good)
     return u >= p_loss
+
+
+def control_problem(c: ControlSpec, var) -> str | None:
+    """Why control ``c`` cannot drive the FMU input ``var`` (None: it can). A control drives a
+    Real input, or an Integer/Boolean one with a held table of whole (Boolean: 0/1) values."""
+    from uwcosim.master import vartypes
+
+    kind = vartypes.kind(var)
+    if kind == "float":
+        return None
+    if kind not in ("int", "bool"):
+        return f"is of type {var.type}; controls drive numeric inputs only"
+    if c.table is not None and c.interpolation == "hold":
+        values = [v for _, v in c.table]
+        if kind == "bool" and all(v in (0, 1) for v in values):
+            return None
+        if kind == "int" and all(float(v).is_integer() for v in values):
+            return None
+    need = "0/1" if kind == "bool" else "whole-number"
+    return (f"is of type {var.type}: a control drives it only with a table of {need} values "
+            f"and interpolation = \"hold\"")
+
+
+class StageInputs:
+    """Refreshes an ME FMU's table-control inputs at the integrator's stage times (picklable,
+    so that an FMU in a worker process can take it along)."""
+
+    def __init__(self, pairs: list[tuple[int, TableControl]]) -> None:
+        self.pairs = pairs
+
+    def __call__(self, t: float, view: np.ndarray) -> None:
+        for j, ctl in self.pairs:
+            view[j] = ctl.value(t)
+
+
+@dataclass
+class Sensor:
+    """A group of FMU outputs measured together, with its sampling and loss."""
+
+    name: str
+    outputs: list[str]
+    slots: np.ndarray
+    period: int
+    received: np.ndarray  # [n_steps + 1] bool: sampled and not lost at step k
+    sampled: np.ndarray = field(default=None)

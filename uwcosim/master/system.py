@@ -34,7 +34,7 @@ from uwcosim.scenario.schema import ControlSpec as Control
 from uwcosim.scenario.schema import NoiseSpec as Noise
 from uwcosim.scenario.schema import SensorSpec as Sensor
 
-__all__ = ["FMU", "Control", "Noise", "Sensor", "System", "from_scenario"]
+__all__ = ["FMU", "Control", "Noise", "Sensor", "System", "Termination", "from_scenario"]
 
 
 @dataclass
@@ -86,6 +86,19 @@ class System:
         if p.is_absolute() or self.base_dir is None:
             return p.resolve()
         return (Path(self.base_dir) / p).resolve()
+
+
+@dataclass(frozen=True)
+class Termination:
+    """An FMU's request to stop the simulation: who, when, why."""
+
+    fmu: str
+    time: float
+    reason: str
+
+    def message(self) -> str:
+        why = f": {self.reason}" if self.reason else ""
+        return f"FMU '{self.fmu}' requested termination at t={self.time:g}{why}"
 
 
 def from_scenario(loaded) -> System:

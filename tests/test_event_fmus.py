@@ -101,3 +101,164 @@ def test_ball_cs_locates_bounces_inside_the_steps(event_fmus, version, step):
     np.testing.assert_allclose(r["v"], v, rtol=0, atol=1e-9)
     np.testing.assert_array_equal(r["bounces"], k)
     assert r["bounces"][-1] == 11 and r["h"][-1] == 0.0 and r["v"][-1] == 0.0
+
+
+# ---- Stair ----------------------------------------------------------------------------------
+
+
+def _first_times(t, values, levels):
+    """Time of the first row where ``values`` reaches each level."""
+    return np.array([t[np.argmax(values >= lev)] for lev in levels])
+
+
+@pytest.mark.parametrize("version,fmi_type", BOTH, ids=_ids(BOTH))
+@pytest.mark.parametrize("period", [1.0, 0.25])
+def test_stair_counts_time_events(event_fmus, version, fmi_type, period):
+    path = event_fmus[("Stair", version)]
+    r = _simulate(path, fmi_type, stop_time=10.0, output_interval=0.1,
+                  start_values={"period": period})
+    t, n = r["time"], r["counter"]
+    ticks = np.arange(1, int(round(10.0 / period)) + 1) * period
+    assert n[0] == 1 and n[-1] == 1 + len(ticks)
+    away = np.min(np.abs(t[:, None] - ticks[None, :]), axis=1) > 1e-9
+    np.testing.assert_array_equal(n[away], 1 + np.floor(t[away] / period))
+    # the value after the tick at every tick time on the output grid (the last row at that time)
+    on_grid = [tk for tk in ticks if np.isclose(t, tk, rtol=0, atol=1e-9).any()]
+    assert len(on_grid) >= len(ticks) // 2
+    for tk in on_grid:
+        last = np.flatnonzero(np.isclose(t, tk, rtol=0, atol=1e-9))[-1]
+        assert n[last] == 1 + round(tk / period)
+    if fmi_type == "ModelExchange":  # the events themselves are rows, at exactly k*period
+        np.testing.assert_allclose(_first_times(t, n, 2 + np.arange(len(ticks))), ticks,
+                                   rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("version,fmi_type", BOTH, ids=_ids(BOTH))
+@pytest.mark.parametrize("t_terminate", [2.5, 2.55])
+def test_stair_requests_termination(event_fmus, version, fmi_type, t_terminate):
+    path = event_fmus[("Stair", version)]
+    r = _simulate(path, fmi_type, stop_time=10.0, output_interval=0.1,
+                  start_values={"t_terminate": t_terminate}, early_return_allowed=True)
+    # fmpy stops at the request, with the counter of that time
+    assert r["time"][-1] == pytest.approx(t_terminate, abs=1e-12)
+    assert r["counter"][-1] == 3
+    assert np.all(r["time"] <= t_terminate + 1e-12)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_stair_cs_without_early_return_reports_the_termination_time(event_fmus, version,
+                                                                     tmp_path):
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import fmi2Discard, fmi2LastSuccessfulTime, fmi2Terminated
+
+    path = event_fmus[("Stair", version)]
+    md = fmpy.read_model_description(str(path))
+    fmu = fmpy.instantiate_fmu(fmpy.extract(str(path), str(tmp_path)), md,
+                               fmi_type="CoSimulation")
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    if version == "2.0":
+        fmu.setupExperiment(startTime=0.0)
+        fmu.setReal([vr["t_terminate"]], [0.55])
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        fmu.doStep(0.0, 0.5)
+        with pytest.raises(FMICallException) as err:
+            fmu.doStep(0.5, 0.5)
+        assert err.value.status == fmi2Discard
+        assert fmu.getBooleanStatus(fmi2Terminated)
+        assert fmu.getRealStatus(fmi2LastSuccessfulTime) == pytest.approx(0.55, abs=1e-12)
+    else:
+        fmu.setFloat64([vr["t_terminate"]], [0.55])
+        fmu.enterInitializationMode(startTime=0.0)
+        fmu.exitInitializationMode()
+        assert fmu.doStep(0.0, 0.5) == (False, False, False, 0.5)
+        _, terminate, early, last = fmu.doStep(0.5, 0.5)
+        assert terminate and not early  # early return was not allowed
+        assert last == pytest.approx(0.55, abs=1e-12)
+    fmu.terminate()
+    fmu.freeInstance()
+
+
+# ---- Feedthrough ----------------------------------------------------------------------------
+
+
+def _feedthrough_input():
+    # u = t (continuous ramp), iu steps 0 -> 3 at 0.5 s, bu false -> true at 1.2 s
+    t = np.array([0.0, 0.5, 0.5, 1.2, 1.2, 2.0])
+    sig = np.zeros(len(t), dtype=[("time", np.float64), ("u", np.float64), ("iu", np.int32),
+                                  ("bu", np.bool_)])
+    sig["time"], sig["u"] = t, t
+    sig["iu"] = [0, 0, 3, 3, 3, 3]
+    sig["bu"] = [False, False, False, False, True, True]
+    return sig
+
+
+@pytest.mark.parametrize("version,fmi_type", BOTH, ids=_ids(BOTH))
+def test_feedthrough_outputs_equal_the_inputs(event_fmus, version, fmi_type):
+    path = event_fmus[("Feedthrough", version)]
+    r = _simulate(path, fmi_type, stop_time=2.0, output_interval=0.1, input=_feedthrough_input(),
+                  start_values={"k": -1.5}, output=["y", "yk", "iy", "by"])
+    t = r["time"]
+    if fmi_type == "ModelExchange":
+        # fmpy sets the inputs at every output time before reading the outputs
+        t_in = t
+        np.testing.assert_allclose(r["y"], t, rtol=0, atol=1e-12)
+    else:
+        # co-simulation: the outputs after a step see the inputs set at its start
+        t_in = np.concatenate([[0.0], t[:-1]])
+        np.testing.assert_allclose(r["y"], t_in, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(r["yk"], -1.5 * r["y"], rtol=0, atol=1e-12)
+    away = (np.abs(t_in - 0.5) > 1e-9) & (np.abs(t_in - 1.2) > 1e-9)
+    np.testing.assert_array_equal(r["iy"][away], np.where(t_in[away] > 0.5, 3, 0))
+    np.testing.assert_array_equal(r["by"][away], t_in[away] > 1.2)
+    assert r["iy"][-1] == 3 and r["by"][-1]
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_discrete_inputs_are_refused_in_continuous_time_mode(event_fmus, version, tmp_path):
+    from fmpy.fmi1 import FMICallException
+
+    path = event_fmus[("Feedthrough", version)]
+    md = fmpy.read_model_description(str(path))
+    messages = []
+    if version == "2.0":
+        def logger(env, name, status, category, message):
+            messages.append(message.decode())
+    else:
+        def logger(env, status, category, message):
+            messages.append(message.decode())
+    fmu = fmpy.instantiate_fmu(fmpy.extract(str(path), str(tmp_path)), md,
+                               fmi_type="ModelExchange", logger=logger)
+    v2 = version == "2.0"
+    set_int = fmu.setInteger if v2 else fmu.setInt32
+    get_int = fmu.getInteger if v2 else fmu.getInt32
+    set_real = fmu.setReal if v2 else fmu.setFloat64
+    get_real = fmu.getReal if v2 else fmu.getFloat64
+    update = fmu.newDiscreteStates if v2 else fmu.updateDiscreteStates
+    if v2:
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+    else:
+        fmu.enterInitializationMode(startTime=0.0)
+    set_int([3], [5])  # initialization mode: allowed
+    fmu.exitInitializationMode()
+    set_int([3], [6])  # event mode: allowed
+    update()
+    fmu.enterContinuousTimeMode()
+    set_real([1], [1.5])  # a continuous input: allowed
+    with pytest.raises(FMICallException):
+        set_int([3], [7])
+    assert "'iu'" in messages[-1]
+    assert "can only be set in initialization mode or event mode" in messages[-1]
+    with pytest.raises(FMICallException):
+        fmu.setBoolean([5], [True])
+    assert "'bu'" in messages[-1]
+    with pytest.raises(FMICallException):
+        set_real([7], [3.0])  # a fixed parameter after initialization
+    assert get_int([4]) == [6] and get_real([2]) == [1.5]
+    fmu.enterEventMode()
+    set_int([3], [7])
+    update()
+    assert get_int([4]) == [7]
+    fmu.terminate()
+    fmu.freeInstance()

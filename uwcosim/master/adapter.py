@@ -460,6 +460,11 @@ class FMUAdapter:
         """``rk4``/``adaptive`` (no events) or ``cvode`` (event-aware); after instantiate."""
         return self._me.solver_name if self._me is not None else self.solver
 
+    @property
+    def event_times(self) -> list[float]:
+        """Model exchange: times of the events handled since initialization."""
+        return self._me.event_times if self._me is not None else []
+
     def states(self) -> np.ndarray:
         return self._me.states()
 

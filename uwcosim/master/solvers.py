@@ -36,6 +36,8 @@ from uwcosim.errors import FMUError
 
 #: event iterations allowed before the FMU is declared not converging
 MAX_EVENT_ITERATIONS = 1000
+#: event times kept in :attr:`ModelExchange.event_times`
+MAX_LOGGED_EVENTS = 100_000
 
 
 def _close(a: float, b: float) -> bool:
@@ -131,7 +133,8 @@ class ModelExchange:
         self._t = t0
         self._inputs = None
         self._input_fn = None
-        self.events = 0  # event iterations done (initial one excluded)
+        #: times of the events handled after initialization (the first MAX_LOGGED_EVENTS)
+        self.event_times: list[float] = []
 
     # -- event mode ---------------------------------------------------------------------------
     def _iterate(self, t: float) -> None:
@@ -161,7 +164,8 @@ class ModelExchange:
         self.ad._check(self._enter_event(self._c), "enterEventMode", t)
         if before is not None:
             before()
-        self.events += 1
+        if len(self.event_times) < MAX_LOGGED_EVENTS:
+            self.event_times.append(t)
         self._iterate(t)
         if self.ad.terminated is None:
             self.ad._guard("enterContinuousTimeMode", self.ad._fmu.enterContinuousTimeMode, t)

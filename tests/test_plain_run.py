@@ -168,3 +168,18 @@ def test_worker_process_fmu_leaves_no_folder(project_fmus, tmp_path):
     sc.write_text(sc.read_text().replace('[fmus.dvl]\n', '[fmus.dvl]\ntimeout_s = 30\n'))
     assert main(["run", str(sc), "--out", str(tmp_path / "r"), "--no-figures"]) == 0
     assert _tmp_fmu_dirs() <= before
+
+
+def test_unclosed_master_cleans_up_at_process_exit(project_fmus):
+    """Campaign workers keep their masters open for reuse: the folder goes at process exit."""
+    import subprocess
+    import sys
+
+    code = ("from uwcosim.master import FMU, Master, System\n"
+            f"m = Master(System(fmus={{'v': FMU({str(project_fmus / 'DVL.fmu')!r})}}, "
+            "step=1.0, duration=1.0))\n"
+            "m.initialize()\nprint(m.unzip_root)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, timeout=120)
+    root = Path(out.stdout.strip())
+    assert root.name.startswith("uwcosim_fmu_") and not root.exists()

@@ -390,6 +390,17 @@ class Master:
             node.adapter.set_inputs(node.inputs, self.t0)
             self._read(node, self.t0)
         self._initialized = True
+        for node in self.nodes:  # a request to stop in the initial event iteration
+            if node.adapter.terminated is not None:
+                self._stop(node.adapter)
+                break
+
+    def _stop(self, ad) -> None:
+        """Record ``ad``'s request to stop; an error with ``stop_on_terminate = "error"``."""
+        t, reason = ad.terminated
+        self.terminated = Termination(ad.name, float(t), str(reason))
+        if self.system.stop_on_terminate == "error":
+            raise FMUError(f"{self.terminated.message()} (run.stop_on_terminate = \"error\")")
 
     def _load_sources(self, k: int) -> None:
         self.bus[self.source_slots] = self.source_table[k]
@@ -444,8 +455,10 @@ class Master:
                 self._set_text(node)
             np.take(self.bus, node.in_slots, out=node.inputs.view)
             ad = node.adapter
-            t_reached = ad.do_step(self.t0 + (k + 1 - p) * self.h, p * self.h, node.inputs,
-                                   node.input_fn)
+            # the step is the difference of two grid times (as fmpy's loop does), so the FMU
+            # lands on t_{k+1} without accumulating rounding
+            t_start = self.t0 + (k + 1 - p) * self.h
+            t_reached = ad.do_step(t_start, t_next - t_start, node.inputs, node.input_fn)
             stop = ad.terminated
             if stop is not None:
                 t_reached = stop[0]
@@ -454,11 +467,7 @@ class Master:
             node.time_s += dt
             fmu_time += dt
             if stop is not None and self.terminated is None:
-                self.terminated = Termination(ad.name, float(stop[0]), str(stop[1]))
-                if self.system.stop_on_terminate == "error":
-                    self.master_time_s += time.perf_counter() - c0 - fmu_time
-                    raise FMUError(f"{self.terminated.message()} (run.stop_on_terminate = "
-                                   f"\"error\")")
+                self._stop(ad)
                 if stop[0] < t_next - 1e-9 * self.h:  # stopped inside the step: not on the grid
                     self.master_time_s += time.perf_counter() - c0 - fmu_time
                     return

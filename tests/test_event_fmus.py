@@ -262,3 +262,133 @@ def test_discrete_inputs_are_refused_in_continuous_time_mode(event_fmus, version
     assert get_int([4]) == [7]
     fmu.terminate()
     fmu.freeInstance()
+
+
+# ---- TypedBlock -----------------------------------------------------------------------------
+
+TYPED_OUTPUTS = ["f32_out", "i8_out", "u16_out", "i32_out", "i64_out", "u64_out", "b_out",
+                 "mode_out", "d_out", "y", "label_len", "gain_sum"]
+
+
+def _wrap(x, bits):
+    """Two's complement wrap-around of an integer to ``bits`` bits."""
+    return (x + 2 ** (bits - 1)) % 2**bits - 2 ** (bits - 1)
+
+
+def _start_values(md):
+    """The declared start values of a model description as Python values."""
+    out = {}
+    for v in md.modelVariables:
+        if v.start is None:
+            continue
+        if v.type == "String":
+            out[v.name] = v.start
+        elif v.type == "Boolean":
+            out[v.name] = v.start in ("true", "1", True)
+        elif v.type in ("Real", "Float32", "Float64"):
+            values = [float(x) for x in str(v.start).split()]
+            out[v.name] = values if v.dimensions else values[0]
+        else:
+            out[v.name] = int(v.start)
+    return out
+
+
+def typed_expected(version, s):
+    """TypedBlock's outputs for the inputs and parameters ``s`` (name -> value)."""
+    v3 = version == "3.0"
+    f32 = np.float32 if v3 else float
+    gains = s["gains"] if v3 else [s["gains[1]"], s["gains[2]"], s["gains[3]"]]
+    return {
+        "f32_out": f32(2.0) * f32(s["f32_in"]) + f32(0.5),
+        "i8_out": s["i8_in"],
+        "u16_out": (s["u16_in"] + 1) % 65536,
+        "i32_out": _wrap(s["i32_in"] + 1, 32),
+        "i64_out": _wrap(2 * s["i64_in"], 64 if v3 else 32),
+        "u64_out": (s["u64_in"] + 1) % 2**64 if v3 else _wrap(s["u64_in"] + 1, 32),
+        "b_out": not s["b_in"],
+        "mode_out": s["mode_in"],
+        "d_out": s["d_in"],
+        "label_len": len(s["label"]),
+        "gain_sum": sum(gains),
+    }
+
+
+EDGES = {  # inputs at the ends of their ranges (FMI 2 Integers are 32 bits)
+    "2.0": {"f32_in": 0.1, "i8_in": -128, "u16_in": 65535, "i32_in": 2**31 - 1,
+            "i64_in": 2**30, "u64_in": 2**31 - 1, "b_in": True, "mode_in": 3, "d_in": -2.0,
+            "label": "abcdef", "gains[2]": -0.5},
+    "3.0": {"f32_in": 0.1, "i8_in": -128, "u16_in": 65535, "i32_in": 2**31 - 1,
+            "i64_in": -(2**62) - 1, "u64_in": 2**64 - 1, "b_in": True, "mode_in": 3,
+            "d_in": -2.0, "label": "abcdef", "gains": [0.5, 0.25, 4.0]},
+}
+
+
+@pytest.mark.parametrize("version,fmi_type", BOTH, ids=_ids(BOTH))
+@pytest.mark.parametrize("case", ["defaults", "edges"])
+def test_typed_block_outputs_are_the_functions_of_the_inputs(event_fmus, version, fmi_type,
+                                                              case):
+    path = event_fmus[("TypedBlock", version)]
+    md = fmpy.read_model_description(str(path))
+    values = _start_values(md)
+    start = EDGES[version] if case == "edges" else {}
+    values.update(start)
+    r = _simulate(path, fmi_type, stop_time=2.0, output_interval=0.1, output=TYPED_OUTPUTS,
+                  start_values={k: np.array(v) if isinstance(v, list) else v
+                                for k, v in start.items()})
+    expected = typed_expected(version, values)
+    for name, value in expected.items():
+        got = r[name]
+        if isinstance(value, bool | int) and not isinstance(value, np.floating):
+            assert all(int(x) == int(value) for x in got), (name, got[:3], value)
+        else:
+            assert got.dtype == (np.float32 if isinstance(value, np.float32) else np.float64)
+            assert np.all(got == value), (name, got[:3], value)
+    # y integrates d_in exactly (RK4 / CVode on a constant derivative)
+    np.testing.assert_allclose(r["y"], values["d_in"] * r["time"], rtol=0, atol=1e-9)
+    if version == "3.0":  # the sized types reach the importer as such
+        assert r["u64_out"].dtype == np.uint64 and r["i8_out"].dtype == np.int8
+        assert r["f32_out"].dtype == np.float32 and r["u16_out"].dtype == np.uint16
+
+
+@pytest.mark.parametrize("version,fmi_type", BOTH, ids=_ids(BOTH))
+def test_typed_block_discrete_input_changes_at_an_event(event_fmus, version, fmi_type):
+    path = event_fmus[("TypedBlock", version)]
+    sig = np.array([(0.0, 0.5), (1.0, 0.5), (1.0, -1.0), (2.0, -1.0)],
+                   dtype=[("time", np.float64), ("d_in", np.float64)])
+    r = _simulate(path, fmi_type, stop_time=2.0, output_interval=0.1, input=sig,
+                  output=["y", "d_out"])
+    t = r["time"]
+    y = np.where(t <= 1.0, 0.5 * t, 0.5 - (t - 1.0))
+    np.testing.assert_allclose(r["y"], y, rtol=0, atol=1e-9)
+    # model exchange: d_out switches at the event; co-simulation: in the step starting at 1 s
+    t_in = t if fmi_type == "ModelExchange" else np.concatenate([[0.0], t[:-1]])
+    away = np.abs(t_in - 1.0) > 1e-9
+    np.testing.assert_array_equal(r["d_out"][away], np.where(t_in[away] < 1.0, 0.5, -1.0))
+    assert r["d_out"][-1] == -1.0
+
+
+def test_typed_block_fmi3_refuses_a_wrongly_typed_access(event_fmus, tmp_path):
+    from fmpy.fmi1 import FMICallException
+
+    path = event_fmus[("TypedBlock", "3.0")]
+    md = fmpy.read_model_description(str(path))
+    messages = []
+
+    def logger(env, status, category, message):
+        messages.append(message.decode())
+
+    fmu = fmpy.instantiate_fmu(fmpy.extract(str(path), str(tmp_path)), md,
+                               fmi_type="CoSimulation", logger=logger)
+    with pytest.raises(FMICallException):
+        fmu.setFloat64([1], [2.0])  # f32_in is a Float32
+    assert "'f32_in'" in messages[-1] and "Float32" in messages[-1]
+    fmu.setFloat32([1], [2.0])
+    fmu.setFloat64([24], [1.0, 1.0, 1.0])  # the array parameter gains, all 3 elements
+    with pytest.raises(FMICallException):
+        fmu.setFloat64([24], [1.0])  # not enough values for the array
+    fmu.enterInitializationMode(startTime=0.0)
+    fmu.exitInitializationMode()
+    assert fmu.getFloat32([2]) == [4.5] and fmu.getFloat64([23]) == [3.0]
+    assert fmu.getInt64([16]) == [2]  # the enumeration through Int64
+    fmu.terminate()
+    fmu.freeInstance()

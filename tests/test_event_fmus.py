@@ -116,7 +116,7 @@ def _first_times(t, values, levels):
 def test_stair_counts_time_events(event_fmus, version, fmi_type, period):
     path = event_fmus[("Stair", version)]
     r = _simulate(path, fmi_type, stop_time=10.0, output_interval=0.1,
-                  start_values={"period": period})
+                  start_values={"period": period}, output=["counter", "even"])
     t, n = r["time"], r["counter"]
     ticks = np.arange(1, int(round(10.0 / period)) + 1) * period
     assert n[0] == 1 and n[-1] == 1 + len(ticks)
@@ -128,6 +128,7 @@ def test_stair_counts_time_events(event_fmus, version, fmi_type, period):
     for tk in on_grid:
         last = np.flatnonzero(np.isclose(t, tk, rtol=0, atol=1e-9))[-1]
         assert n[last] == 1 + round(tk / period)
+    np.testing.assert_array_equal(r["even"], n % 2 == 0)  # fmpy iterates the update
     if fmi_type == "ModelExchange":  # the events themselves are rows, at exactly k*period
         np.testing.assert_allclose(_first_times(t, n, 2 + np.arange(len(ticks))), ticks,
                                    rtol=0, atol=1e-12)
@@ -138,10 +139,11 @@ def test_stair_counts_time_events(event_fmus, version, fmi_type, period):
 def test_stair_requests_termination(event_fmus, version, fmi_type, t_terminate):
     path = event_fmus[("Stair", version)]
     r = _simulate(path, fmi_type, stop_time=10.0, output_interval=0.1,
-                  start_values={"t_terminate": t_terminate}, early_return_allowed=True)
+                  start_values={"t_terminate": t_terminate}, early_return_allowed=True,
+                  output=["counter", "even"])
     # fmpy stops at the request, with the counter of that time
     assert r["time"][-1] == pytest.approx(t_terminate, abs=1e-12)
-    assert r["counter"][-1] == 3
+    assert r["counter"][-1] == 3 and not r["even"][-1]
     assert np.all(r["time"] <= t_terminate + 1e-12)
 
 
@@ -175,6 +177,40 @@ def test_stair_cs_without_early_return_reports_the_termination_time(event_fmus, 
         _, terminate, early, last = fmu.doStep(0.5, 0.5)
         assert terminate and not early  # early return was not allowed
         assert last == pytest.approx(0.55, abs=1e-12)
+    fmu.terminate()
+    fmu.freeInstance()
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_stair_me_needs_a_second_update_pass_at_a_tick(event_fmus, version, tmp_path):
+    path = event_fmus[("Stair", version)]
+    md = fmpy.read_model_description(str(path))
+    fmu = fmpy.instantiate_fmu(fmpy.extract(str(path), str(tmp_path)), md,
+                               fmi_type="ModelExchange")
+    v2 = version == "2.0"
+    update = fmu.newDiscreteStates if v2 else fmu.updateDiscreteStates
+    get_int = fmu.getInteger if v2 else fmu.getInt32
+    if v2:
+        fmu.setupExperiment(startTime=0.0)
+        fmu.setReal([3], [2.0])  # t_terminate
+        fmu.enterInitializationMode()
+    else:
+        fmu.setFloat64([3], [2.0])
+        fmu.enterInitializationMode(startTime=0.0)
+    fmu.exitInitializationMode()
+    assert update() == (False, False, False, False, True, 1.0)
+    for t, counter in ((1.0, 2), (2.0, 3)):
+        fmu.enterContinuousTimeMode()
+        fmu.setTime(t)
+        fmu.enterEventMode()
+        needed, terminate, _, _, _, _ = update()
+        # first pass: the counter ticks, even still describes the previous counter
+        assert needed and not terminate
+        assert get_int([1]) == [counter] and fmu.getBoolean([4]) == [counter % 2 == 1]
+        needed, terminate, _, _, defined, t_next = update()
+        assert not needed and fmu.getBoolean([4]) == [counter % 2 == 0]
+        assert terminate == (t == 2.0)
+        assert (defined, t_next) == ((True, 2.0) if t == 1.0 else (False, 0.0))
     fmu.terminate()
     fmu.freeInstance()
 

@@ -11,6 +11,7 @@
 
 typedef struct {
     int32_t counter;
+    bool even; /* counter is even: follows the counter one discrete-update pass later */
     double period, t_terminate;
     int64_t k; /* index of the next tick, at k * period */
 } ModelData;

@@ -129,3 +129,152 @@ def test_ball_me_matches_fmpy_and_the_bounce_times(event_fmus, tmp_path, version
     np.testing.assert_allclose(t, r_t, rtol=0, atol=1e-9)
     np.testing.assert_allclose(h, r_h, rtol=0, atol=1e-6)
     np.testing.assert_array_equal(b, ref["bounces"][grid][on_grid])
+
+
+# -- Stair: time events, an Integer output, termination ---------------------------------------
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("interface", ["cs", "me"])
+def test_stair_matches_fmpy(event_fmus, tmp_path, version, interface):
+    path = event_fmus[("Stair", version)]
+    sc = scenario(tmp_path, {"stair": {"path": path, "interface": interface}}, 10.0, 0.1)
+    rc, cols, summary = run(sc, tmp_path / "r")
+    assert rc == 0 and summary["status"] == "ok"
+    ref = fmpy.simulate_fmu(str(path), fmi_type="CoSimulation" if interface == "cs" else
+                            "ModelExchange", stop_time=10.0, output_interval=0.1,
+                            output=["counter"])
+    # fmpy's ME result has two rows at a time event: keep the last (after the event), as ours
+    last = np.append(np.diff(ref["time"]) > 0, True)
+    np.testing.assert_array_equal(cols["time"], ref["time"][last])
+    np.testing.assert_array_equal(cols["stair.counter"], ref["counter"][last])
+    assert cols["stair.counter"].dtype == np.int32
+    # counter = 1 + floor(t), the ticks (time events) on the grid included
+    np.testing.assert_array_equal(cols["stair.counter"], 1 + np.floor(cols["time"] + 1e-9))
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("interface", ["cs", "me"])
+@pytest.mark.parametrize("t_end", [5.0, 5.05], ids=["on-grid", "mid-step"])
+def test_stair_termination_ends_the_run(event_fmus, tmp_path, capsys, version, interface,
+                                        t_end):
+    path = event_fmus[("Stair", version)]
+    sc = scenario(tmp_path, {"stair": {"path": path, "interface": interface,
+                                       "parameters": {"t_terminate": t_end}}}, 10.0, 0.1)
+    out = tmp_path / "r"
+    rc = main(["run", str(sc), "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 0
+    assert err == [f"uwcosim: FMU 'stair' requested termination at t={t_end:g}: "
+                   + err[0].split(": ", 2)[2]]
+    cols, _ = read_log(out / "log.parquet")
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "terminated" and summary["error"] == ""
+    assert summary["termination"]["fmu"] == "stair"
+    assert summary["termination"]["time_s"] == pytest.approx(t_end, abs=1e-12)
+    assert summary["end_time_s"] == pytest.approx(t_end, abs=1e-12)
+    # rows up to the termination time: the grid up to it, and the termination time itself
+    t = cols["time"]
+    assert t[-1] == pytest.approx(t_end, abs=1e-12) and np.all(np.diff(t) > 0)
+    np.testing.assert_allclose(t[:-1], 0.1 * np.arange(t.size - 1), rtol=0, atol=1e-12)
+    assert t.size == (51 if t_end == 5.0 else 52)
+    assert cols["stair.counter"][-1] == 6
+    assert "status **terminated**" in (out / "report.md").read_text()
+
+
+@pytest.mark.parametrize("interface", ["cs", "me"])
+def test_stair_termination_as_error(event_fmus, tmp_path, capsys, interface):
+    path = event_fmus[("Stair", "2.0")]
+    sc = scenario(tmp_path, {"stair": {"path": path, "interface": interface,
+                                       "parameters": {"t_terminate": 2.0}}}, 10.0, 0.1,
+                  run_extra={"stop_on_terminate": "error"})
+    out = tmp_path / "r"
+    assert main(["run", str(sc), "--out", str(out)]) == 3
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert err.startswith("uwcosim: error: FMU 'stair' requested termination at t=2")
+    assert 'stop_on_terminate = "error"' in err and "log up to t=" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and summary["termination"]["time_s"] == 2.0
+    assert read_log(out / "log.parquet")[0]["time"][-1] <= 2.0 + 1e-12
+
+
+# -- Feedthrough: connections across types and across CS/ME -----------------------------------
+CONTROLS = {"u": {"target": "ft.u", "table": [[0, 0.0], [1, 1.0], [2, -1.0]]},
+            "iu": {"target": "ft.iu", "table": [[0, 0], [0.5, 3], [1.5, -2]],
+                   "interpolation": "hold"},
+            "bu": {"target": "ft.bu", "table": [[0, 0], [0.7, 1], [1.2, 0]],
+                   "interpolation": "hold"}}
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("interface", ["cs", "me"])
+def test_feedthrough_typed_inputs_match_fmpy(event_fmus, tmp_path, version, interface):
+    path = event_fmus[("Feedthrough", version)]
+    sc = scenario(tmp_path, {"ft": {"path": path, "interface": interface,
+                                    "parameters": {"k": 3}}}, 2.0, 0.1, controls=CONTROLS)
+    rc, cols, summary = run(sc, tmp_path / "r")
+    assert rc == 0 and summary["status"] == "ok"
+    t = cols["time"]
+    u = np.interp(t, [0, 1, 2], [0.0, 1.0, -1.0])
+    iu = np.where(t < 0.5 - 1e-9, 0, np.where(t < 1.5 - 1e-9, 3, -2))
+    bu = (t >= 0.7 - 1e-9) & (t < 1.2 - 1e-9)
+
+    def held(x):  # the value set at t_k, held over the step: seen in the row of t_{k+1}
+        return np.concatenate([x[:1], x[:-1]])
+
+    # co-simulation holds every input over the step; model exchange follows the Real table
+    # at the integrator's stages and sets the discrete inputs at communication points
+    y = held(u) if interface == "cs" else u
+    np.testing.assert_allclose(cols["ft.y"], y, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(cols["ft.yk"], 3 * y, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(cols["ft.iy"], held(iu))
+    np.testing.assert_array_equal(cols["ft.by"], held(bu))
+    assert cols["ft.iy"].dtype == np.int32 and cols["ft.by"].dtype == np.bool_
+    # fmpy with the same inputs (linear u, held iu and bu) gives the same outputs; its ME
+    # result has two rows at an input event: ours is the one before the new input
+    signals = np.array(list(zip(t, u, iu, bu)),
+                       dtype=[("time", float), ("u", float), ("iu", np.int32), ("bu", bool)])
+    ref = fmpy.simulate_fmu(str(path), fmi_type="CoSimulation" if interface == "cs" else
+                            "ModelExchange", stop_time=2.0, output_interval=0.1,
+                            start_values={"k": 3.0}, input=signals,
+                            output=["y", "iy", "by", "yk"])
+    first = np.concatenate([[True], np.diff(ref["time"]) > 0])
+    assert first.sum() == t.size
+    np.testing.assert_allclose(cols["ft.y"], ref["y"][first], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(cols["ft.yk"], ref["yk"][first], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(cols["ft.iy"], ref["iy"][first])
+    np.testing.assert_array_equal(cols["ft.by"], ref["by"][first])
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("ft_interface", ["cs", "me"])
+def test_me_ball_feeds_feedthrough_across_types(event_fmus, tmp_path, version, ft_interface):
+    """Ball (ME, events) -> Feedthrough: Float -> Float and Int32 -> Float64; Stair (ME, time
+    events) -> the Feedthrough's discrete Integer input, set at communication points only."""
+    fmus = {"ball": {"path": event_fmus[("BouncingBall", version)], "interface": "me"},
+            "stair": {"path": event_fmus[("Stair", version)], "interface": "me"},
+            "ft": {"path": event_fmus[("Feedthrough", version)], "interface": ft_interface}}
+    conns = [("ball.h", "ft.u"), ("stair.counter", "ft.iu")]
+    sc = scenario(tmp_path, fmus, 3.0, 0.01, connections=conns)
+    rc, cols, summary = run(sc, tmp_path / "r")
+    assert rc == 0 and summary["status"] == "ok"
+    # Gauss-Seidel: the Feedthrough sees the ball's and the stair's outputs of the same point
+    np.testing.assert_array_equal(cols["ft.y"], cols["ball.h"])
+    np.testing.assert_array_equal(cols["ft.iy"], cols["stair.counter"])
+    assert cols["ball.bounces"][-1] == 11 and cols["ft.iy"][-1] == 4
+    # the Integer bounce count into a Float64 input is allowed too
+    sc2 = scenario(tmp_path, fmus, 1.0, 0.01, connections=[("ball.bounces", "ft.u")],
+                   name="b.toml")
+    rc, cols, _ = run(sc2, tmp_path / "r2")
+    assert rc == 0
+    np.testing.assert_array_equal(cols["ft.y"], cols["ball.bounces"].astype(float))
+
+
+def test_float_to_integer_connection_is_refused(event_fmus, tmp_path, capsys):
+    fmus = {"ball": {"path": event_fmus[("BouncingBall", "3.0")]},
+            "ft": {"path": event_fmus[("Feedthrough", "3.0")]}}
+    sc = scenario(tmp_path, fmus, 1.0, 0.1, connections=[("ball.h", "ft.iu")])
+    assert main(["run", str(sc), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "key 'connections[0]'" in err and "'ball.h' (Float64)" in err
+    assert "'ft.iu' (Int32)" in err

@@ -338,6 +338,7 @@ class FMUAdapter:
             self._do_step = self._raw[f"{p}DoStep"]
             self._flags = [ctypes.c_bool() for _ in range(3)] + [ctypes.c_double()]
             self._flag_refs = [ctypes.byref(f) for f in self._flags]
+            self._terminate_flag, self._early_flag = self._flags[1], self._flags[2]
 
     # -- hot path ---------------------------------------------------------------------------
     def _check(self, status: int, what: str, t: float) -> None:
@@ -401,11 +402,10 @@ class FMUAdapter:
                 self._check(st, "get outputs", t)
             b.groups_to_raw()
             return b.view
-        if self.fmi3:
-            st = self._get(self._c, b.vr, b.n, b.buf, b.n)
-        else:
-            st = self._get(self._c, b.vr, b.n, b.buf)
-        self._check(st, "get outputs", t)
+        st = (self._get(self._c, b.vr, b.n, b.buf, b.n) if self.fmi3 else
+              self._get(self._c, b.vr, b.n, b.buf))
+        if st > 1:
+            self._check(st, "get outputs", t)
         if b.scale is not None:
             b.from_fmu()
         return b.view
@@ -418,27 +418,43 @@ class FMUAdapter:
         if self.terminated is not None:
             raise FMUError(f"FMU '{self.name}' ({self.path.name}): doStep at t={t:g} after the "
                            f"FMU asked to stop at t={self.terminated[0]:g}")
-        if self.interface == "me":
+        if self._me is not None:
             return self._me.step(t, h, inputs, input_fn)
-        self.set_inputs(inputs, t)
+        b = inputs
+        if b.n:  # set_inputs inlined: the co-simulation hot path
+            if b.groups:
+                self._set_groups(b, b.groups, t)
+            else:
+                if b.scale is not None:
+                    b.to_fmu()
+                st = (self._set(self._c, b.vr, b.n, b.buf, b.n) if self.fmi3 else
+                      self._set(self._c, b.vr, b.n, b.buf))
+                if st > 1:
+                    self._check(st, "set inputs", t)
         if self.fmi3:
             st = self._do_step(self._c, t, h, True, *self._flag_refs)
-            if self._flags[1].value and st <= 2:  # terminateSimulation
-                early = self._flags[2].value
-                t_end = self._flags[3].value if early else t + h
-                self.terminated = (t_end, self._reason("terminateSimulation"))
-                return t_end
-            if self._flags[2].value and st <= 1:
-                raise FMUError(f"FMU '{self.name}' ({self.path.name}): doStep returned early at "
-                               f"t={self._flags[3].value:g} (early return was not allowed)")
+            if self._terminate_flag.value or self._early_flag.value:
+                return self._fmi3_stopped(st, t, h)
         else:
             st = self._do_step(self._c, t, h, 1)
             if st == 2 and self._fmi2_terminated():
                 t_end = self._fmi2_last_time(t)
                 self.terminated = (t_end, self._reason("fmi2Discard with fmi2Terminated"))
                 return t_end
-        self._check(st, "doStep", t)
+        if st > 1:
+            self._check(st, "doStep", t)
         return t + h
+
+    def _fmi3_stopped(self, st: int, t: float, h: float) -> float:
+        """FMI 3 doStep with terminateSimulation or earlyReturn set."""
+        if self._terminate_flag.value and st <= 2:
+            early = self._early_flag.value
+            t_end = self._flags[3].value if early else t + h
+            self.terminated = (t_end, self._reason("terminateSimulation"))
+            return t_end
+        self._check(st, "doStep", t)
+        raise FMUError(f"FMU '{self.name}' ({self.path.name}): doStep returned early at "
+                       f"t={self._flags[3].value:g} (early return was not allowed)")
 
     def _reason(self, what: str) -> str:
         last = f": {self.messages[-1]}" if self.messages else ""

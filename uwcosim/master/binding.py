@@ -63,10 +63,10 @@ class Binding:
     kinds: tuple[str, ...] = ()  # float/int/bool/string per member
     types: tuple[str, ...] = ()  # declared FMI type per member
     text: dict[int, str] = field(default_factory=dict)  # String members: index -> value
+    n: int = field(init=False)  # number of members (an attribute: read on every call)
 
-    @property
-    def n(self) -> int:
-        return len(self.names)
+    def __post_init__(self) -> None:
+        self.n = len(self.names)
 
     @property
     def discrete_groups(self) -> tuple[Group, ...]:

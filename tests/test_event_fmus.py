@@ -428,3 +428,22 @@ def test_typed_block_fmi3_refuses_a_wrongly_typed_access(event_fmus, tmp_path):
     assert fmu.getInt64([16]) == [2]  # the enumeration through Int64
     fmu.terminate()
     fmu.freeInstance()
+
+
+@pytest.mark.parametrize("version,fmi_type", BOTH, ids=_ids(BOTH))
+def test_typed_block_step_events_wrap_y_around(event_fmus, version, fmi_type):
+    path = event_fmus[("TypedBlock", version)]
+    md = fmpy.read_model_description(str(path))
+    me = md.modelExchange
+    assert me.needsCompletedIntegratorStep
+    r = _simulate(path, fmi_type, stop_time=2.0, output_interval=0.1, output=["y", "wraps"],
+                  start_values={"y_wrap": 0.3})
+    # y + wraps * y_wrap is the integral of d_in = 0.5 whenever the wraps happened
+    np.testing.assert_allclose(r["y"] + 0.3 * r["wraps"], 0.5 * r["time"], rtol=0, atol=1e-9)
+    assert r["wraps"][-1] == 3
+    if fmi_type == "CoSimulation":  # handled inside the step, after an internal step of 0.01 s
+        assert r["y"].max() < 0.3 + 0.5 * 0.01
+    else:  # handled after the integrator step that crossed y_wrap (steps <= 0.1 s here)
+        assert r["y"].max() < 0.3 + 0.5 * 0.1
+    # recorded after the events: every wrap-around brought y back below y_wrap
+    assert np.all(r["y"][np.flatnonzero(np.diff(r["wraps"])) + 1] < 0.3)

@@ -92,3 +92,8 @@ void model_update(Instance *c) {
         core_log(c, S_OK, "bounce %d at t=%.17g", (int)m->bounces, c->time);
     }
 }
+
+bool model_step_event(Instance *c) {
+    (void)c;
+    return false;
+}

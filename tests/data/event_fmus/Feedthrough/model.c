@@ -41,3 +41,8 @@ void model_set_x(Instance *c, const double x[]) { (void)c; (void)x; }
 void model_der(Instance *c, double dx[]) { (void)c; (void)dx; }
 void model_nominals(Instance *c, double nominal[]) { (void)c; (void)nominal; }
 void model_indicators(Instance *c, double z[]) { (void)c; (void)z; }
+
+bool model_step_event(Instance *c) {
+    (void)c;
+    return false;
+}

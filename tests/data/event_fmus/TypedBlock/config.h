@@ -48,6 +48,8 @@ typedef struct {
     char label[STR_LEN];
     int32_t label_len;
     double gains[3], gain_sum;
+    double y_wrap;  /* > 0: y wraps around to y - y_wrap at a step event once y >= y_wrap */
+    int32_t wraps;  /* number of wrap-arounds */
 } ModelData;
 
 #endif

@@ -6,11 +6,15 @@
  *   b_out = not b_in,  mode_out = mode_in,
  *   d_out = d_in, taken at the discrete update (event mode; co-simulation: step start),
  *   der(y) = d_in (y = integral of the discrete input, the only state),
- *   label_len = length of the String parameter label,  gain_sum = gains[1]+gains[2]+gains[3].
+ *   label_len = length of the String parameter label,  gain_sum = gains[1]+gains[2]+gains[3],
+ *   if y_wrap > 0: a step event (completedIntegratorStep asks for event mode; co-simulation:
+ *   after an internal step) once y >= y_wrap, where y := y - y_wrap and wraps := wraps + 1,
+ *   so that y + wraps * y_wrap is the integral of d_in.
  *
  * In FMI 2 the Float32 and Int8..UInt64 variables are Real and Integer (32 bits), the array
  * parameter gains is three scalars gains[1], gains[2], gains[3].
  */
+#include <math.h>
 #include <string.h>
 
 #include "core.h"
@@ -40,6 +44,8 @@ const VarDef model_vars[] = {
     {21, "label", VT_STR, K_PARAM, VAR_OFFSET(label), 1},
     {22, "label_len", VT_I32, K_CALC, VAR_OFFSET(label_len), 1},
     {23, "gain_sum", VT_F64, K_CALC, VAR_OFFSET(gain_sum), 1},
+    {27, "y_wrap", VT_F64, K_PARAM, VAR_OFFSET(y_wrap), 1},
+    {28, "wraps", VT_I32, K_START, VAR_OFFSET(wraps), 1},
 #if FMI_VERSION == 3
     {24, "gains", VT_F64, K_PARAM, VAR_OFFSET(gains), 3},
 #else
@@ -71,6 +77,8 @@ void model_start(Instance *c) {
     m->gains[0] = 1.0;
     m->gains[1] = 2.0;
     m->gains[2] = 3.0;
+    m->y_wrap = 0.0;
+    m->wraps = 0;
 }
 
 void model_calc(Instance *c) {
@@ -99,7 +107,18 @@ void model_initialize(Instance *c) {
     c->next_defined = false;
 }
 
-void model_update(Instance *c) { c->m.d_out = c->m.d_in; }
+bool model_step_event(Instance *c) { return c->m.y_wrap > 0.0 && c->m.y >= c->m.y_wrap; }
+
+void model_update(Instance *c) {
+    ModelData *m = &c->m;
+    m->d_out = m->d_in;
+    if (model_step_event(c)) {
+        double n = floor(m->y / m->y_wrap);
+        m->y -= n * m->y_wrap;
+        m->wraps += (int32_t)n;
+        c->values_changed = true;
+    }
+}
 
 void model_get_x(Instance *c, double x[]) { x[0] = c->m.y; }
 void model_set_x(Instance *c, const double x[]) { c->m.y = x[0]; }

@@ -5,7 +5,8 @@
  * the communication step and on the next time event. When an event indicator changes sign
  * inside an internal step (from > 0 to <= 0 or from < 0 to >= 0), the crossing is located by
  * bisection on the RK4 step length to 1e-13 s (relative to the time for t > 1 s) and the
- * discrete update runs at the first point past the crossing. Discrete inputs set between
+ * discrete update runs at the first point past the crossing; a step event (the model's answer
+ * to completedIntegratorStep) after an internal step runs it there. Discrete inputs set between
  * steps are taken in by a discrete update at the start of the next step.
  */
 #include <math.h>
@@ -193,7 +194,8 @@ static bool crossed(const double z0[], const double z1[]) {
 }
 
 /* integrate from c->time to target (no time event in between); returns true on a state event,
- * with the states and time at the first point past the crossing */
+ * with the states and time at the first point past the crossing, or on a step event (the model
+ * asks for an event after an internal step, as completedIntegratorStep would) */
 static bool advance(Instance *c, double target) {
     double x0[NXA], x1[NXA], z0[NZA], z1[NZA];
     double t0 = c->time, span = target - t0;
@@ -212,7 +214,9 @@ static bool advance(Instance *c, double target) {
         model_set_x(c, x1);
         c->time = tb;
         model_indicators(c, z1);
-        if (crossed(z0, z1)) {
+        if (!crossed(z0, z1)) {
+            if (model_step_event(c)) return true; /* a step event */
+        } else {
             double a = 0.0, b = dt;
             int it;
             for (it = 0; it < 200 && b - a > 1e-13 * fmax(1.0, fabs(ta)); it++) {

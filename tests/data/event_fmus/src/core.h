@@ -84,6 +84,7 @@ void model_der(Instance *c, double dx[]);   /* their derivatives */
 void model_nominals(Instance *c, double nominal[]);
 void model_indicators(Instance *c, double z[]);
 void model_update(Instance *c);             /* one pass of the discrete (event) update */
+bool model_step_event(Instance *c);         /* after an integrator step: enter event mode? */
 
 /* ---- core.c ---- */
 Instance *core_new(const char *name, bool me, LogFn log, void *env);

@@ -364,7 +364,7 @@ fmi2Status fmi2CompletedIntegratorStep(fmi2Component comp,
     (void)noSetFMUStatePriorToCurrentPoint;
     if (core_check_mode(c, MODES(M_CONT), "fmi2CompletedIntegratorStep") != S_OK)
         return fmi2Error;
-    *enterEventMode = fmi2False;
+    *enterEventMode = model_step_event(c) ? fmi2True : fmi2False;
     *terminateSimulation = fmi2False;
     return fmi2OK;
 }

@@ -501,7 +501,7 @@ fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance,
     (void)noSetFMUStatePriorToCurrentPoint;
     if (core_check_mode(c, MODES(M_CONT), "fmi3CompletedIntegratorStep") != S_OK)
         return fmi3Error;
-    *enterEventMode = false;
+    *enterEventMode = model_step_event(c) ? true : false;
     *terminateSimulation = false;
     return fmi3OK;
 }

@@ -439,7 +439,7 @@ class FMUAdapter:
             st = self._do_step(self._c, t, h, 1)
             if st == 2 and self._fmi2_terminated():
                 t_end = self._fmi2_last_time(t)
-                self.terminated = (t_end, self._reason("fmi2Discard with fmi2Terminated"))
+                self.terminated = (t_end, self._reason("fmi2Terminated"))
                 return t_end
         if st > 1:
             self._check(st, "doStep", t)
@@ -448,8 +448,8 @@ class FMUAdapter:
     def _fmi3_stopped(self, st: int, t: float, h: float) -> float:
         """FMI 3 doStep with terminateSimulation or earlyReturn set."""
         if self._terminate_flag.value and st <= 2:
-            early = self._early_flag.value
-            t_end = self._flags[3].value if early else t + h
+            last = self._flags[3].value  # the FMU's time when doStep returned
+            t_end = last if t <= last <= t + h else t + h
             self.terminated = (t_end, self._reason("terminateSimulation"))
             return t_end
         self._check(st, "doStep", t)
@@ -457,8 +457,8 @@ class FMUAdapter:
                        f"t={self._flags[3].value:g} (early return was not allowed)")
 
     def _reason(self, what: str) -> str:
-        last = f": {self.messages[-1]}" if self.messages else ""
-        return f"FMU '{self.name}' asked to stop ({what}){last}"
+        """``terminateSimulation`` / ``fmi2Terminated`` and the FMU's last log message."""
+        return f"{what}: {self.messages[-1]}" if self.messages else what
 
     def _fmi2_terminated(self) -> bool:
         flag = ctypes.c_int(0)

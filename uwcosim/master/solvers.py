@@ -143,8 +143,7 @@ class ModelExchange:
         for _ in range(MAX_EVENT_ITERATIONS):
             need, terminate, _, _, defined, t_next = self.ad._guard("event update", update, t)
             if terminate:
-                self.ad.terminated = (t, self.ad._reason("terminateSimulation in the event "
-                                                         "update"))
+                self.ad.terminated = (t, self.ad._reason("terminateSimulation (event update)"))
                 return
             if not need:
                 self.next_event = float(t_next) if defined else None
@@ -250,7 +249,7 @@ class ModelExchange:
         st = self._completed(self._c, True if ad.fmi3 else 1, *self._cflag_refs)
         ad._check(st, "completedIntegratorStep", t)
         if self._cflags[1].value:
-            ad.terminated = (t, ad._reason("terminateSimulation in completedIntegratorStep"))
+            ad.terminated = (t, ad._reason("terminateSimulation (completedIntegratorStep)"))
             return
         if self._cflags[0].value:
             self._event(t)
@@ -326,8 +325,7 @@ class ModelExchange:
             st = self._completed(self._c, True if ad.fmi3 else 1, *self._cflag_refs)
             ad._check(st, "completedIntegratorStep", time)
             if self._cflags[1].value:
-                ad.terminated = (time, ad._reason("terminateSimulation in "
-                                                  "completedIntegratorStep"))
+                ad.terminated = (time, ad._reason("terminateSimulation (completedIntegratorStep)"))
                 return time
             if state_event or time_event or self._cflags[0].value:
                 self._event(time)

@@ -324,7 +324,8 @@ class FMUAdapter:
             getter = getattr(self._fmu, f"get{info[2]}")
             n = int(np.prod(v.shape)) if getattr(v, "dimensions", None) else 1
             vals = getter([v.valueReference], n) if self.fmi3 else getter([v.valueReference])
-            vals = [bool(x) for x in vals] if info[0] == "bool" else list(vals)
+            vals = [bool(x) for x in vals] if info[0] == "bool" else [
+                x.decode("utf-8", "replace") if isinstance(x, bytes) else x for x in vals]
             a = self.varmap.aliases.get(name)
             out[name] = vals if n != 1 or getattr(v, "dimensions", None) else (
                 a.to_ours(vals[0]) if a is not None else vals[0])

@@ -202,3 +202,26 @@ def test_fmu_check_says_which_me_solver(event_fmus, model, expected):
     assert rep.ok, rep.text()
     [line] = [x for x in rep.lines if x.startswith("  ME solver")]
     assert expected in line
+
+
+# ---- TypedBlock: step events (completedIntegratorStep) ----------------------------------------
+
+@pytest.mark.parametrize("solver", ["rk4", "adaptive"])
+@pytest.mark.parametrize("version", VERSIONS)
+def test_step_events_are_handled_after_the_integrator_step(event_fmus, version, solver):
+    path = event_fmus[("TypedBlock", version)]
+    params = {"y_wrap": 0.32}  # never hit exactly by y = 0.05 k (no rounding ties)
+    ad, times, rows = run_adapter(path, "me", ["y", "wraps"], 2.0, 0.1, params, solver=solver)
+    try:
+        assert ad.solver_used == solver  # no event indicator, no time event: fast path
+        assert len(ad.event_times) == rows[-1, 1] > 0
+    finally:
+        ad.close()
+    ref = fmpy.simulate_fmu(str(path), fmi_type="ModelExchange", stop_time=2.0,
+                            output_interval=0.1, relative_tolerance=RTOL,
+                            start_values=params, output=["y", "wraps"])
+    grid = fmpy_grid(ref, times)
+    np.testing.assert_allclose(rows[:, 0], grid["y"], atol=1e-9)
+    assert np.array_equal(rows[:, 1], grid["wraps"])
+    # y + wraps*y_wrap is the integral of d_in (start 0.5)
+    np.testing.assert_allclose(rows[:, 0] + 0.32 * rows[:, 1], 0.5 * times, atol=1e-9)

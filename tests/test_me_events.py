@@ -225,3 +225,17 @@ def test_step_events_are_handled_after_the_integrator_step(event_fmus, version, 
     assert np.array_equal(rows[:, 1], grid["wraps"])
     # y + wraps*y_wrap is the integral of d_in (start 0.5)
     np.testing.assert_allclose(rows[:, 0] + 0.32 * rows[:, 1], 0.5 * times, atol=1e-9)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_discrete_inputs_are_set_again_after_a_reset(event_fmus, version):
+    ad = FMUAdapter("dut", event_fmus[("Feedthrough", version)], "me")
+    b_in, b_out = ad.bind(["iu"]), ad.bind(["iy"])
+    try:
+        for _ in range(2):  # the second instantiate resets the instance (campaign reuse)
+            ad.instantiate({}, {}, 0.0, 1.0)
+            b_in.view[:] = [5.0]
+            ad.do_step(0.0, 0.5, b_in, None)
+            assert ad.get_outputs(b_out, 0.5)[0] == 5.0
+    finally:
+        ad.close()

@@ -100,6 +100,7 @@ class FMUAdapter:
         self._fmu = None
         self._me = None
         self._pending: list[Binding] = []  # typed bindings made before the library is loaded
+        self._typed: list[Binding] = []  # every typed binding (discrete inputs: last values)
         self._instantiated = False
         self.time_s = 0.0  # wall time spent in this FMU's calls (set by the master)
 
@@ -181,6 +182,7 @@ class FMUAdapter:
         raw = view if identity else np.zeros(len(names))
         b = Binding(tuple(names), None, None, view, raw, scale, offset, tuple(groups),
                     kinds, types)
+        self._typed.append(b)
         if self._fmu is not None:
             self._resolve_groups(b)
         else:
@@ -293,6 +295,9 @@ class FMUAdapter:
         if self.interface == "me":
             from uwcosim.master.solvers import ModelExchange
 
+            for b in self._typed:  # a new run: every discrete input is set again
+                for g in b.groups:
+                    g.last = None
             self._me = ModelExchange(self, t0, t_stop)
             self._me.initial_event(t0)
 

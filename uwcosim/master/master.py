@@ -370,23 +370,27 @@ class Master:
 
     # -- running ----------------------------------------------------------------------------
     def initialize(self, start_overrides: dict[str, dict] | None = None) -> None:
-        """Instantiate and initialize every FMU at ``t0`` and read the outputs at ``t0``."""
+        """Instantiate and initialize every FMU at ``t0`` and read the outputs at ``t0``.
+
+        FMUs are initialized in stepping order; each one's inputs (sources at ``t0`` and the
+        outputs of the FMUs before it) are set in initialization mode, with its start values,
+        so that its outputs at ``t0`` already see them (as ``fmpy.simulate_fmu`` does)."""
         t_stop = self.t0 + self.n_steps * self.h
+        self.k = 0
+        self.terminated = None
+        self._load_sources(0)
         for node in self.nodes:
             name = node.adapter.name
             f = self.system.fmus[name]
             params = dict(f.parameters)
             params.update((start_overrides or {}).get(name, {}))
-            try:
-                node.adapter.instantiate(params, dict(f.start), self.t0, t_stop)
-            except FMUError as exc:
-                raise FMUError(f"{exc} [{self._where(f'fmus.{name}')}]") from None
-        self.k = 0
-        self.terminated = None
-        self._load_sources(0)
-        for node in self.nodes:
             self._set_text(node)
             np.take(self.bus, node.in_slots, out=node.inputs.view)
+            start = {**self._input_values(node), **f.start}
+            try:
+                node.adapter.instantiate(params, start, self.t0, t_stop)
+            except FMUError as exc:
+                raise FMUError(f"{exc} [{self._where(f'fmus.{name}')}]") from None
             node.adapter.set_inputs(node.inputs, self.t0)
             self._read(node, self.t0)
         self._initialized = True
@@ -407,6 +411,20 @@ class Master:
         for slot, ctl in self.dynamic:
             x, y = self.bus[ctl.pos_slots]
             self.bus[slot] = ctl.value_at(x, y)
+
+    def _input_values(self, node: _Node) -> dict:
+        """The node's driven inputs as native values (for initialization mode)."""
+        out = {}
+        for j, name in enumerate(node.inputs.names):
+            var = node.adapter.variables[name]
+            if node.adapter.varmap.aliases.get(name) is not None:
+                continue  # a role with a unit conversion: set by set_inputs after initialization
+            kind = vartypes.kind(var)
+            x = node.inputs.view[j]
+            out[name] = (node.inputs.text.get(j, "") if kind == "string" else
+                         int(round(x)) if kind == "int" else bool(x) if kind == "bool"
+                         else float(x))
+        return out
 
     def _set_text(self, node: _Node) -> None:
         for j, slot in node.str_inputs:

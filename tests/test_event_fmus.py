@@ -39,6 +39,38 @@ def test_fmus_are_valid(event_fmus, model, version):
     assert event_fmu(model, version) == path
 
 
+def _instantiate(path, fmi_type, tmp_path, messages=None):
+    """An fmpy instance of an event FMU whose log messages go to ``messages``.
+
+    FMI 2 without fmpy's logger proxy: the proxy keeps one process-wide logger, which crashes
+    later FMI 2 instances once this callback is gone (as uwcosim's adapter does)."""
+    from fmpy import fmi2, fmi3
+
+    md = fmpy.read_model_description(str(path))
+    unzipdir = fmpy.extract(str(path), str(tmp_path / "fmu"))
+    messages = [] if messages is None else messages
+    cs = fmi_type == "CoSimulation"
+    args = dict(guid=md.guid, unzipDirectory=unzipdir,
+                modelIdentifier=md.coSimulation.modelIdentifier)
+    if md.fmiVersion == "2.0":
+        def log2(env, name, status, category, message):
+            messages.append(message.decode())
+
+        cb = fmi2.fmi2CallbackFunctions()
+        cb.logger = fmi2.fmi2CallbackLoggerTYPE(log2)
+        cb.allocateMemory = fmi2.fmi2CallbackAllocateMemoryTYPE(fmi2.calloc)
+        cb.freeMemory = fmi2.fmi2CallbackFreeMemoryTYPE(fmi2.free)
+        fmu = (fmi2.FMU2Slave if cs else fmi2.FMU2Model)(**args)
+        fmu.instantiate(callbacks=cb)  # fmu.callbacks keeps cb alive
+    else:
+        def log3(env, status, category, message):
+            messages.append(message.decode())
+
+        fmu = (fmi3.FMU3Slave if cs else fmi3.FMU3Model)(**args)
+        fmu.instantiate(logMessage=log3)
+    return md, fmu
+
+
 # ---- BouncingBall ---------------------------------------------------------------------------
 
 
@@ -153,10 +185,7 @@ def test_stair_cs_without_early_return_reports_the_termination_time(event_fmus, 
     from fmpy.fmi1 import FMICallException
     from fmpy.fmi2 import fmi2Discard, fmi2LastSuccessfulTime, fmi2Terminated
 
-    path = event_fmus[("Stair", version)]
-    md = fmpy.read_model_description(str(path))
-    fmu = fmpy.instantiate_fmu(fmpy.extract(str(path), str(tmp_path)), md,
-                               fmi_type="CoSimulation")
+    md, fmu = _instantiate(event_fmus[("Stair", version)], "CoSimulation", tmp_path)
     vr = {v.name: v.valueReference for v in md.modelVariables}
     if version == "2.0":
         fmu.setupExperiment(startTime=0.0)
@@ -183,10 +212,7 @@ def test_stair_cs_without_early_return_reports_the_termination_time(event_fmus, 
 
 @pytest.mark.parametrize("version", VERSIONS)
 def test_stair_me_needs_a_second_update_pass_at_a_tick(event_fmus, version, tmp_path):
-    path = event_fmus[("Stair", version)]
-    md = fmpy.read_model_description(str(path))
-    fmu = fmpy.instantiate_fmu(fmpy.extract(str(path), str(tmp_path)), md,
-                               fmi_type="ModelExchange")
+    _, fmu = _instantiate(event_fmus[("Stair", version)], "ModelExchange", tmp_path)
     v2 = version == "2.0"
     update = fmu.newDiscreteStates if v2 else fmu.updateDiscreteStates
     get_int = fmu.getInteger if v2 else fmu.getInt32
@@ -254,17 +280,9 @@ def test_feedthrough_outputs_equal_the_inputs(event_fmus, version, fmi_type):
 def test_discrete_inputs_are_refused_in_continuous_time_mode(event_fmus, version, tmp_path):
     from fmpy.fmi1 import FMICallException
 
-    path = event_fmus[("Feedthrough", version)]
-    md = fmpy.read_model_description(str(path))
     messages = []
-    if version == "2.0":
-        def logger(env, name, status, category, message):
-            messages.append(message.decode())
-    else:
-        def logger(env, status, category, message):
-            messages.append(message.decode())
-    fmu = fmpy.instantiate_fmu(fmpy.extract(str(path), str(tmp_path)), md,
-                               fmi_type="ModelExchange", logger=logger)
+    _, fmu = _instantiate(event_fmus[("Feedthrough", version)], "ModelExchange", tmp_path,
+                          messages)
     v2 = version == "2.0"
     set_int = fmu.setInteger if v2 else fmu.setInt32
     get_int = fmu.getInteger if v2 else fmu.getInt32
@@ -406,15 +424,8 @@ def test_typed_block_discrete_input_changes_at_an_event(event_fmus, version, fmi
 def test_typed_block_fmi3_refuses_a_wrongly_typed_access(event_fmus, tmp_path):
     from fmpy.fmi1 import FMICallException
 
-    path = event_fmus[("TypedBlock", "3.0")]
-    md = fmpy.read_model_description(str(path))
     messages = []
-
-    def logger(env, status, category, message):
-        messages.append(message.decode())
-
-    fmu = fmpy.instantiate_fmu(fmpy.extract(str(path), str(tmp_path)), md,
-                               fmi_type="CoSimulation", logger=logger)
+    _, fmu = _instantiate(event_fmus[("TypedBlock", "3.0")], "CoSimulation", tmp_path, messages)
     with pytest.raises(FMICallException):
         fmu.setFloat64([1], [2.0])  # f32_in is a Float32
     assert "'f32_in'" in messages[-1] and "Float32" in messages[-1]
@@ -447,3 +458,32 @@ def test_typed_block_step_events_wrap_y_around(event_fmus, version, fmi_type):
         assert r["y"].max() < 0.3 + 0.5 * 0.1
     # recorded after the events: every wrap-around brought y back below y_wrap
     assert np.all(r["y"][np.flatnonzero(np.diff(r["wraps"])) + 1] < 0.3)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_stair_cs_terminating_in_initialization_reports_it_at_the_first_step(event_fmus, version,
+                                                                            tmp_path):
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import fmi2Discard, fmi2LastSuccessfulTime, fmi2Terminated
+
+    messages = []
+    _, fmu = _instantiate(event_fmus[("Stair", version)], "CoSimulation", tmp_path, messages)
+    if version == "2.0":
+        fmu.setupExperiment(startTime=0.0)
+        fmu.setReal([3], [0.0])  # t_terminate at the start
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        for _ in range(2):  # and again: no progress, same answer
+            with pytest.raises(FMICallException) as err:
+                fmu.doStep(0.0, 0.5)
+            assert err.value.status == fmi2Discard and fmu.getBooleanStatus(fmi2Terminated)
+            assert fmu.getRealStatus(fmi2LastSuccessfulTime) == 0.0
+    else:
+        fmu.setFloat64([3], [0.0])
+        fmu.enterInitializationMode(startTime=0.0)
+        fmu.exitInitializationMode()
+        for _ in range(2):
+            assert fmu.doStep(0.0, 0.5)[1:] == (True, False, 0.0)
+    assert "requested to terminate at t=0" in messages[-1]
+    fmu.terminate()
+    fmu.freeInstance()

@@ -240,9 +240,10 @@ Status core_do_step(Instance *c, double t, double h, double *t_reached) {
     double t_end = t + h;
     *t_reached = c->time;
     if (core_check_mode(c, MODES(M_STEP), "DoStep") != S_OK) return S_ERROR;
-    if (c->terminate) {
-        core_log(c, S_ERROR, "DoStep: the FMU asked to terminate at t=%.17g", c->time);
-        return S_ERROR;
+    if (c->terminate) { /* asked before (e.g. in initialization): report it again, no progress */
+        core_log(c, S_WARNING, "DoStep: the FMU has requested to terminate at t=%.17g",
+                 c->time);
+        return S_OK;
     }
     if (h < 0.0 || fabs(t - c->time) > core_time_tol(t)) {
         core_log(c, S_ERROR, "DoStep from t=%.17g with step %.17g but the FMU is at t=%.17g", t, h,

@@ -34,7 +34,7 @@ from uwcosim.master.archive import (
     sha256_file,
     unzip,
 )
-from uwcosim.master.binding import Binding, Group
+from uwcosim.master.binding import Binding, make_binding
 from uwcosim.master.varmap import VariableMap, resolve_map
 from uwcosim.master.vartypes import FLOAT64, coerce, is_continuous_input, kind, type_info
 
@@ -151,37 +151,11 @@ class FMUAdapter:
                 raise FMUError(f"{self.path}: FMU '{self.name}': variable {v.name!r} has type "
                                f"{v.type}{' (array)' if kind(v) != 'unsupported' else ''}, "
                                f"which cannot be connected or logged")
-        kinds = tuple(kind(v) for v in variables)
-        types = tuple(v.type for v in variables)
         affine = [self.varmap.affine(n) for n in names]
-        identity = all(a == (1.0, 0.0) for a in affine)
-        scale = None if identity else np.array([a[0] for a in affine])
-        offset = None if identity else np.array([a[1] for a in affine])
-        vr_t = ctypes.c_uint32
-        if all(v.type in FLOAT64 and not self._discrete_input(v) for v in variables):
-            vr = (vr_t * len(names))(*[v.valueReference for v in variables])
-            buf = (ctypes.c_double * len(names))()
-            raw = np.ctypeslib.as_array(buf) if len(names) else np.zeros(0)
-            if identity:
-                return Binding(tuple(names), vr, buf, raw, raw, kinds=kinds, types=types)
-            return Binding(tuple(names), vr, buf, np.zeros(len(names)), raw, scale, offset,
-                           kinds=kinds, types=types)
-        keys: dict[tuple[str, bool], list[int]] = {}
-        for i, v in enumerate(variables):
-            keys.setdefault((v.type, self._discrete_input(v)), []).append(i)
-        groups = []
-        p = "fmi3" if self.fmi3 else "fmi2"
-        for (_, discrete), idx in keys.items():
-            k, ctype, suffix, _ = type_info(variables[idx[0]], self.fmi3)
-            vr = (vr_t * len(idx))(*[variables[i].valueReference for i in idx])
-            buf = (ctype * len(idx))()
-            arr = None if k == "string" else np.ctypeslib.as_array(buf)
-            groups.append(Group(np.array(idx, dtype=np.intp), vr, buf, arr, k,
-                                f"{p}Get{suffix}", f"{p}Set{suffix}", discrete))
-        view = np.zeros(len(names))
-        raw = view if identity else np.zeros(len(names))
-        b = Binding(tuple(names), None, None, view, raw, scale, offset, tuple(groups),
-                    kinds, types)
+        b = make_binding(tuple(names), variables, affine, self.fmi3,
+                         [self._discrete_input(v) for v in variables])
+        if not b.groups:
+            return b
         self._typed.append(b)
         if self._fmu is not None:
             self._resolve_groups(b)

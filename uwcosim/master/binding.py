@@ -22,6 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from uwcosim.master.vartypes import FLOAT64, kind, type_info
+
 
 @dataclass
 class Group:
@@ -143,3 +145,40 @@ class Binding:
         else:
             for j, i in enumerate(g.idx):
                 g.buf[j] = self.text.get(int(i), "").encode("utf-8")
+
+
+def make_binding(names: tuple[str, ...], variables: list, affine: list[tuple[float, float]],
+                 fmi3: bool, discrete: list[bool]) -> Binding:
+    """The binding of ``variables`` (exposed as ``names``; ``ours = a*theirs + b`` per member
+    from ``affine``; ``discrete``: model-exchange inputs to set in event mode only). Typed
+    groups hold the fmpy function *names* (``fmi3GetInt8``...) until the library is loaded."""
+    n = len(names)
+    kinds = tuple(kind(v) for v in variables)
+    types = tuple(v.type for v in variables)
+    identity = all(a == (1.0, 0.0) for a in affine)
+    scale = None if identity else np.array([a[0] for a in affine])
+    offset = None if identity else np.array([a[1] for a in affine])
+    vr_t = ctypes.c_uint32
+    if all(v.type in FLOAT64 for v in variables) and not any(discrete):
+        vr = (vr_t * n)(*[v.valueReference for v in variables])
+        buf = (ctypes.c_double * n)()
+        raw = np.ctypeslib.as_array(buf) if n else np.zeros(0)
+        if identity:
+            return Binding(names, vr, buf, raw, raw, kinds=kinds, types=types)
+        return Binding(names, vr, buf, np.zeros(n), raw, scale, offset, kinds=kinds,
+                       types=types)
+    keys: dict[tuple[str, bool], list[int]] = {}
+    for i, v in enumerate(variables):
+        keys.setdefault((v.type, discrete[i]), []).append(i)
+    groups = []
+    p = "fmi3" if fmi3 else "fmi2"
+    for (_, disc), idx in keys.items():
+        k, ctype, suffix, _ = type_info(variables[idx[0]], fmi3)
+        vr = (vr_t * len(idx))(*[variables[i].valueReference for i in idx])
+        buf = (ctype * len(idx))()
+        arr = None if k == "string" else np.ctypeslib.as_array(buf)
+        groups.append(Group(np.array(idx, dtype=np.intp), vr, buf, arr, k,
+                            f"{p}Get{suffix}", f"{p}Set{suffix}", disc))
+    view = np.zeros(n)
+    raw = view if identity else np.zeros(n)
+    return Binding(names, None, None, view, raw, scale, offset, tuple(groups), kinds, types)

@@ -102,7 +102,8 @@ def test_controls_drive_integer_boolean_and_discrete_inputs(event_fmus, tmp_path
         "i8": {"target": "tb.i8_in", "table": [[0, 1], [0.5, -7]], "interpolation": "hold"},
         "b": {"target": "tb.b_in", "table": [[0, 0], [0.3, 1]], "interpolation": "hold"},
         "m": {"target": "tb.mode_in", "table": [[0, 1], [0.6, 3]], "interpolation": "hold"},
-        "d": {"target": "tb.d_in", "table": [[0, 1.0], [0.5, 3.0]], "interpolation": "hold"},
+        # a linear table into a discrete Real input: still set at communication points only
+        "d": {"target": "tb.d_in", "table": [[0, 1.0], [0.45, 1.0], [0.5, 3.0]]},
         "f": {"target": "tb.f32_in", "table": [[0, 0.0], [1, 1.0]]},
     }
     sc = scenario(tmp_path, {"tb": {"path": path, "interface": interface}}, 1.0, 0.1,
@@ -116,7 +117,7 @@ def test_controls_drive_integer_boolean_and_discrete_inputs(event_fmus, tmp_path
     np.testing.assert_array_equal(cols["tb.b_out"], ~(tk >= 0.3 - 1e-9))
     np.testing.assert_array_equal(cols["tb.mode_out"], np.where(tk < 0.6 - 1e-9, 1, 3))
     np.testing.assert_array_equal(cols["tb.d_out"], np.where(tk < 0.5 - 1e-9, 1.0, 3.0))
-    # y integrates the held d_in: 1 until 0.5 then 3
+    # y integrates d_in held over each step: 1 until 0.5 then 3
     np.testing.assert_allclose(cols["tb.y"], np.where(t <= 0.5, t, 0.5 + 3 * (t - 0.5)),
                                rtol=0, atol=1e-9)
 

@@ -282,3 +282,35 @@ def test_float_to_integer_connection_is_refused(event_fmus, tmp_path, capsys):
     assert len(err.splitlines()) == 1
     assert "key 'connections[0]'" in err and "'ball.h' (Float64)" in err
     assert "'ft.iu' (Int32)" in err
+
+
+def test_system_built_in_code_as_in_the_readme(event_fmus):
+    """The README's example: a Python user builds the System, no TOML."""
+    from uwcosim.master import FMU, Control, Master, System
+
+    system = System(fmus={"ball": FMU(event_fmus[("BouncingBall", "3.0")], interface="me"),
+                          "ft": FMU(event_fmus[("Feedthrough", "2.0")], parameters={"k": 3})},
+                    connections=[("ball.h", "ft.u")],
+                    controls={"iu": Control(target="ft.iu", table=[[0, 0], [1, 5]],
+                                            interpolation="hold")},
+                    step=0.01, duration=3.0)
+    m = Master(system, seed=1)
+    rows = []
+    m.hooks.append(lambda m: rows.append((m.t, m.value("ball.h"), m.value("ft.yk"),
+                                          m.value("ft.iy"), m.value("ball.bounces"))))
+    try:
+        m.initialize()
+        m.run_until(3.0)
+    finally:
+        m.close()
+    assert m.t == pytest.approx(3.0) and m.terminated is None
+    t, h, yk, iy, b = (np.array(c) for c in zip(*rows))
+    np.testing.assert_array_equal(yk, 3 * h)  # Gauss-Seidel: same communication point
+    assert isinstance(rows[-1][4], int) and b[-1] == 11
+    np.testing.assert_array_equal(iy, np.where(t <= 1.0 + 1e-9, 0, 5))
+    # the bounce count steps up in the step that holds each exact bounce time
+    exact = ball_bounce_times()
+    np.testing.assert_allclose(t[np.searchsorted(b, np.arange(1, exact.size + 1))],
+                               np.ceil(exact / 0.01) * 0.01, rtol=0, atol=1e-9)
+    assert h.min() > -1e-6
+    assert not Path(m.unzip_root).exists()

@@ -285,7 +285,7 @@ class Master:
         ad = self.adapters[name]
         for j, i in enumerate(ins):
             src = self.drivers[f"{name}.{i}"]
-            if src.startswith("controls.") and vartypes.kind(ad.variables[i]) == "float":
+            if src.startswith("controls.") and vartypes.is_continuous_input(ad.variables[i]):
                 ctl = self.controls[src.split(".", 1)[1]]
                 if isinstance(ctl, TableControl):
                     pairs.append((j, ctl))

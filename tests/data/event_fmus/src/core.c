@@ -183,7 +183,8 @@ static void rk4(Instance *c, double t0, const double x0[], double dt, double x1[
     c->time = t0 + dt;
     model_set_x(c, xs);
     model_der(c, k4);
-    for (i = 0; i < NX; i++) x1[i] = x0[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+    for (i = 0; i < NX; i++)
+        x1[i] = x0[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
 }
 
 static bool crossed(const double z0[], const double z1[]) {
@@ -264,7 +265,8 @@ Status core_do_step(Instance *c, double t, double h, double *t_reached) {
                 return S_ERROR;
             }
         }
-        if (c->next_defined && c->next_time < target - core_time_tol(target)) target = c->next_time;
+        if (c->next_defined && c->next_time < target - core_time_tol(target))
+            target = c->next_time;
         state_event = advance(c, target);
         if (state_event ||
             (c->next_defined && c->time >= c->next_time - core_time_tol(c->next_time)))

@@ -129,20 +129,41 @@ static int64_t read_int(const VarDef *v, const void *p) {
     case VT_U16: return *(const uint16_t *)p;
     case VT_I32: return *(const int32_t *)p;
     case VT_U32: return *(const uint32_t *)p;
-    case VT_U64: return *(const uint64_t *)p > INT64_MAX ? INT64_MAX : (int64_t)*(const uint64_t *)p;
+    case VT_U64: {
+        uint64_t u = *(const uint64_t *)p;
+        return u > (uint64_t)INT64_MAX ? INT64_MAX : (int64_t)u;
+    }
     default: return *(const int64_t *)p; /* VT_I64, VT_ENUM */
     }
 }
 
 static bool write_int(const VarDef *v, void *p, int64_t x) {
     switch (v->type) {
-    case VT_I8: if (x < INT8_MIN || x > INT8_MAX) return false; *(int8_t *)p = (int8_t)x; break;
-    case VT_U8: if (x < 0 || x > UINT8_MAX) return false; *(uint8_t *)p = (uint8_t)x; break;
-    case VT_I16: if (x < INT16_MIN || x > INT16_MAX) return false; *(int16_t *)p = (int16_t)x; break;
-    case VT_U16: if (x < 0 || x > UINT16_MAX) return false; *(uint16_t *)p = (uint16_t)x; break;
+    case VT_I8:
+        if (x < INT8_MIN || x > INT8_MAX) return false;
+        *(int8_t *)p = (int8_t)x;
+        break;
+    case VT_U8:
+        if (x < 0 || x > UINT8_MAX) return false;
+        *(uint8_t *)p = (uint8_t)x;
+        break;
+    case VT_I16:
+        if (x < INT16_MIN || x > INT16_MAX) return false;
+        *(int16_t *)p = (int16_t)x;
+        break;
+    case VT_U16:
+        if (x < 0 || x > UINT16_MAX) return false;
+        *(uint16_t *)p = (uint16_t)x;
+        break;
     case VT_I32: *(int32_t *)p = (int32_t)x; break;
-    case VT_U32: if (x < 0) return false; *(uint32_t *)p = (uint32_t)x; break;
-    case VT_U64: if (x < 0) return false; *(uint64_t *)p = (uint64_t)x; break;
+    case VT_U32:
+        if (x < 0) return false;
+        *(uint32_t *)p = (uint32_t)x;
+        break;
+    case VT_U64:
+        if (x < 0) return false;
+        *(uint64_t *)p = (uint64_t)x;
+        break;
     default: *(int64_t *)p = x; break;
     }
     return true;
@@ -196,7 +217,9 @@ static fmi2Status get_any(fmi2Component comp, const fmi2ValueReference vr[], siz
             ((fmi2Integer *)values)[i] = (fmi2Integer)x;
             break;
         }
-        case T_BOOLEAN: ((fmi2Boolean *)values)[i] = *(const bool *)p ? fmi2True : fmi2False; break;
+        case T_BOOLEAN:
+            ((fmi2Boolean *)values)[i] = *(const bool *)p ? fmi2True : fmi2False;
+            break;
         case T_STRING: ((fmi2String *)values)[i] = (const char *)p; break;
         }
     }
@@ -293,8 +316,8 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, si
     (void)FMUstate; (void)size;
     return unsupported(c, "fmi2SerializedFMUstateSize");
 }
-fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
-                                 size_t size) {
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
+                                 fmi2Byte serializedState[], size_t size) {
     (void)FMUstate; (void)serializedState; (void)size;
     return unsupported(c, "fmi2SerializeFMUstate");
 }

@@ -14,9 +14,25 @@ import pytest
 from fmpy.validation import validate_fmu
 
 try:
-    from event_fmus import MODELS, VERSIONS, event_fmu, event_fmus
+    from event_fmus import (
+        MODELS,
+        VERSIONS,
+        ball_exact,
+        declared_start_values,
+        event_fmu,
+        event_fmus,
+        typed_expected,
+    )
 except ImportError:  # tests/ imported as a package
-    from tests.event_fmus import MODELS, VERSIONS, event_fmu, event_fmus
+    from tests.event_fmus import (
+        MODELS,
+        VERSIONS,
+        ball_exact,
+        declared_start_values,
+        event_fmu,
+        event_fmus,
+        typed_expected,
+    )
 
 __all__ = ["event_fmus"]  # fixture
 
@@ -72,29 +88,6 @@ def _instantiate(path, fmi_type, tmp_path, messages=None):
 
 
 # ---- BouncingBall ---------------------------------------------------------------------------
-
-
-def ball_exact(t, h0=1.0, g=9.81, e=0.7, v_min=0.1):
-    """Closed form of the ball dropped from rest at h0: (h, v, bounces) at t, bounce times."""
-    t_b = [math.sqrt(2.0 * h0 / g)]
-    v = math.sqrt(2.0 * g * h0)  # impact speed
-    v_up = []  # speed after each bounce (0: rests)
-    while True:
-        v *= e
-        if v < v_min:
-            v_up.append(0.0)
-            break
-        v_up.append(v)
-        t_b.append(t_b[-1] + 2.0 * v / g)
-    t_b, v_up = np.array(t_b), np.array(v_up)
-    t = np.asarray(t, dtype=float)
-    k = np.searchsorted(t_b, t, side="right")  # bounces done by t
-    tau = np.where(k == 0, t, t - t_b[np.maximum(k - 1, 0)])
-    v0 = np.where(k == 0, 0.0, v_up[np.maximum(k - 1, 0)])
-    h = np.where(k == 0, h0, 0.0) + v0 * tau - 0.5 * g * tau**2
-    vel = v0 - g * tau
-    rest = k == len(t_b)
-    return np.where(rest, 0.0, h), np.where(rest, 0.0, vel), k, t_b
 
 
 def _simulate(path, fmi_type, **kw):
@@ -324,49 +317,6 @@ TYPED_OUTPUTS = ["f32_out", "i8_out", "u16_out", "i32_out", "i64_out", "u64_out"
                  "mode_out", "d_out", "y", "label_len", "gain_sum"]
 
 
-def _wrap(x, bits):
-    """Two's complement wrap-around of an integer to ``bits`` bits."""
-    return (x + 2 ** (bits - 1)) % 2**bits - 2 ** (bits - 1)
-
-
-def _start_values(md):
-    """The declared start values of a model description as Python values."""
-    out = {}
-    for v in md.modelVariables:
-        if v.start is None:
-            continue
-        if v.type == "String":
-            out[v.name] = v.start
-        elif v.type == "Boolean":
-            out[v.name] = v.start in ("true", "1", True)
-        elif v.type in ("Real", "Float32", "Float64"):
-            values = [float(x) for x in str(v.start).split()]
-            out[v.name] = values if v.dimensions else values[0]
-        else:
-            out[v.name] = int(v.start)
-    return out
-
-
-def typed_expected(version, s):
-    """TypedBlock's outputs for the inputs and parameters ``s`` (name -> value)."""
-    v3 = version == "3.0"
-    f32 = np.float32 if v3 else float
-    gains = s["gains"] if v3 else [s["gains[1]"], s["gains[2]"], s["gains[3]"]]
-    return {
-        "f32_out": f32(2.0) * f32(s["f32_in"]) + f32(0.5),
-        "i8_out": s["i8_in"],
-        "u16_out": (s["u16_in"] + 1) % 65536,
-        "i32_out": _wrap(s["i32_in"] + 1, 32),
-        "i64_out": _wrap(2 * s["i64_in"], 64 if v3 else 32),
-        "u64_out": (s["u64_in"] + 1) % 2**64 if v3 else _wrap(s["u64_in"] + 1, 32),
-        "b_out": not s["b_in"],
-        "mode_out": s["mode_in"],
-        "d_out": s["d_in"],
-        "label_len": len(s["label"]),
-        "gain_sum": sum(gains),
-    }
-
-
 EDGES = {  # inputs at the ends of their ranges (FMI 2 Integers are 32 bits)
     "2.0": {"f32_in": 0.1, "i8_in": -128, "u16_in": 65535, "i32_in": 2**31 - 1,
             "i64_in": 2**30, "u64_in": 2**31 - 1, "b_in": True, "mode_in": 3, "d_in": -2.0,
@@ -383,7 +333,7 @@ def test_typed_block_outputs_are_the_functions_of_the_inputs(event_fmus, version
                                                               case):
     path = event_fmus[("TypedBlock", version)]
     md = fmpy.read_model_description(str(path))
-    values = _start_values(md)
+    values = declared_start_values(md)
     start = EDGES[version] if case == "edges" else {}
     values.update(start)
     r = _simulate(path, fmi_type, stop_time=2.0, output_interval=0.1, output=TYPED_OUTPUTS,

@@ -125,6 +125,7 @@ class ModelExchange:
         flag = ctypes.c_bool if ad.fmi3 else ctypes.c_int
         self._cflags = [flag(), flag()]
         self._cflag_refs = [ctypes.byref(f) for f in self._cflags]
+        self._true = True if ad.fmi3 else 1  # noSetFMUStatePriorToCurrentPoint
         self.t0, self.t_stop = t0, t_stop
         self.max_step = (t_stop - t0) / 50.0 if t_stop > t0 else math.inf
         self.next_event: float | None = None
@@ -246,7 +247,7 @@ class ModelExchange:
         if self.nx:
             self.xv[:] = x_end
             ad._check(self._set_states(self._c, self._x, self.nx), "setContinuousStates", t)
-        st = self._completed(self._c, True if ad.fmi3 else 1, *self._cflag_refs)
+        st = self._completed(self._c, self._true, *self._cflag_refs)
         ad._check(st, "completedIntegratorStep", t)
         if self._cflags[1].value:
             ad.terminated = (t, ad._reason("terminateSimulation (completedIntegratorStep)"))
@@ -257,24 +258,35 @@ class ModelExchange:
                 self.solver_name = "cvode"  # a time event from now on: the event-aware path
 
     # -- event-aware (CVode) ------------------------------------------------------------------
+    # CVode's callbacks (pointer, size): status checked inline, they run per right-hand side
     def _cb_set_time(self, t: float) -> None:
         self._t = t
-        self.ad._check(self._set_time(self._c, t), "setTime", t)
+        st = self._set_time(self._c, t)
+        if st > 1:
+            self.ad._check(st, "setTime", t)
         if self._input_fn is not None:
             self._input_fn(t, self._inputs.view)
             self.ad.set_continuous(self._inputs, t)
 
     def _cb_get_x(self, p, n) -> None:
-        self.ad._check(self._get_states(self._c, p, n), "getContinuousStates", self._t)
+        st = self._get_states(self._c, p, n)
+        if st > 1:
+            self.ad._check(st, "getContinuousStates", self._t)
 
     def _cb_set_x(self, p, n) -> None:
-        self.ad._check(self._set_states(self._c, p, n), "setContinuousStates", self._t)
+        st = self._set_states(self._c, p, n)
+        if st > 1:
+            self.ad._check(st, "setContinuousStates", self._t)
 
     def _cb_get_dx(self, p, n) -> None:
-        self.ad._check(self._get_der(self._c, p, n), "getDerivatives", self._t)
+        st = self._get_der(self._c, p, n)
+        if st > 1:
+            self.ad._check(st, "getDerivatives", self._t)
 
     def _cb_get_z(self, p, n) -> None:
-        self.ad._check(self._get_z(self._c, p, n), "getEventIndicators", self._t)
+        st = self._get_z(self._c, p, n)
+        if st > 1:
+            self.ad._check(st, "getEventIndicators", self._t)
 
     def _cb_get_nominals(self, p, n) -> None:
         self.ad._check(self._get_nominals(self._c, p, n), "getNominalsOfContinuousStates",
@@ -307,9 +319,10 @@ class ModelExchange:
     def _step_events(self, t: float, t_end: float, inputs, input_fn) -> float:
         ad = self.ad
         self._inputs, self._input_fn = inputs, input_fn
-        self._cb_set_time(t)  # refreshes the continuous inputs when input_fn
+        if input_fn is not None:
+            self._cb_set_time(t)  # refreshes the continuous inputs
         ad.set_continuous(inputs, t)
-        time = t
+        time, flag_true, same_time = t, self._true, 0
         while True:
             t_next, time_event = t_end, False
             ne = self.next_event
@@ -322,12 +335,19 @@ class ModelExchange:
             if state_event:
                 time_event = time_event and _close(time, t_next)
             self._cb_set_time(time)
-            st = self._completed(self._c, True if ad.fmi3 else 1, *self._cflag_refs)
-            ad._check(st, "completedIntegratorStep", time)
+            st = self._completed(self._c, flag_true, *self._cflag_refs)
+            if st > 1:
+                ad._check(st, "completedIntegratorStep", time)
             if self._cflags[1].value:
                 ad.terminated = (time, ad._reason("terminateSimulation (completedIntegratorStep)"))
                 return time
             if state_event or time_event or self._cflags[0].value:
+                same_time = same_time + 1 if self.event_times and time == self.event_times[-1] \
+                    else 0
+                if same_time > MAX_EVENT_ITERATIONS:
+                    raise FMUError(f"FMU '{ad.name}' ({ad.path.name}): more than "
+                                   f"{MAX_EVENT_ITERATIONS} events at t={time:g} (time events "
+                                   f"that do not advance?)")
                 self._event(time)
                 if ad.terminated is not None:
                     return time

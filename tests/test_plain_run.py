@@ -18,8 +18,18 @@ from uwcosim.runlog import read_log
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _tmp_fmu_dirs() -> set[Path]:
-    return set(Path(tempfile.gettempdir()).glob("uwcosim_fmu_*"))
+@pytest.fixture
+def private_tmp(tmp_path, monkeypatch) -> Path:
+    """A temporary folder of our own (the machine's /tmp is shared with other test runs)."""
+    d = tmp_path / "tmp"
+    d.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(d))
+    monkeypatch.setenv("TMPDIR", str(d))
+    return d
+
+
+def _fmu_dirs(tmp: Path) -> list[Path]:
+    return sorted(tmp.glob("uwcosim_fmu_*"))
 
 
 def plain_toml(fmus: Path, extra: str = "") -> str:
@@ -64,8 +74,7 @@ def write(tmp_path: Path, text: str, name: str = "plain.toml") -> Path:
     return p
 
 
-def test_plain_scenario_runs_end_to_end(project_fmus, tmp_path, capsys):
-    before = _tmp_fmu_dirs()
+def test_plain_scenario_runs_end_to_end(project_fmus, tmp_path, capsys, private_tmp):
     sc = write(tmp_path, plain_toml(project_fmus))
     out = tmp_path / "run"
     assert main(["run", str(sc), "--out", str(out)]) == 0
@@ -93,7 +102,7 @@ def test_plain_scenario_runs_end_to_end(project_fmus, tmp_path, capsys):
     assert "![signals](signals.png)" in report and "| vehicle |" in report
     assert f"uwcosim run plain.toml --seed {summary['seed']}" in report
     assert (out / "signals.png").stat().st_size > 10_000
-    assert _tmp_fmu_dirs() <= before  # the master deleted the folders it unzipped to
+    assert _fmu_dirs(private_tmp) == []  # the master deleted the folders it unzipped to
 
 
 def test_plain_run_same_seed_same_bytes(project_fmus, tmp_path):
@@ -125,8 +134,7 @@ def test_plain_run_bad_variable_is_one_line(project_fmus, tmp_path, capsys):
     assert "key 'connections[1]'" in err and "no variable 'nope'" in err
 
 
-def test_master_from_a_system_built_in_code(project_fmus):
-    before = _tmp_fmu_dirs()
+def test_master_from_a_system_built_in_code(project_fmus, private_tmp):
     system = System(
         fmus={"vehicle": FMU(project_fmus / "AUVKinematics_fmi2.fmu", interface="me",
                              start={"x": 0.0, "vx": 1.0}),
@@ -142,11 +150,12 @@ def test_master_from_a_system_built_in_code(project_fmus):
         m.hooks.append(lambda m: rows.append((m.t, m.signal("vehicle.vx"),
                                               m.signal("dvl.vx_m"))))
         m.initialize()
-        assert Path(m.unzip_root).is_dir()
+        assert _fmu_dirs(private_tmp) == [Path(m.unzip_root)]
+        assert {p.name for p in Path(m.unzip_root).iterdir()} == {"vehicle", "dvl"}
         m.run_until(10.0)
     finally:
         m.close()
-    assert not Path(m.unzip_root).exists() and _tmp_fmu_dirs() <= before
+    assert _fmu_dirs(private_tmp) == []
     t, vx, dvl = np.array(rows).T
     # ME with a linear ramp of a evaluated at stage times: vx = 1 + 0.01 t^2 exactly (RK4)
     np.testing.assert_allclose(vx, 1.0 + 0.01 * t**2, atol=1e-12)
@@ -162,12 +171,11 @@ def test_system_errors_name_the_system(project_fmus):
         Master(system)
 
 
-def test_worker_process_fmu_leaves_no_folder(project_fmus, tmp_path):
-    before = _tmp_fmu_dirs()
+def test_worker_process_fmu_leaves_no_folder(project_fmus, tmp_path, private_tmp):
     sc = write(tmp_path, plain_toml(project_fmus, ""), "p.toml")
     sc.write_text(sc.read_text().replace('[fmus.dvl]\n', '[fmus.dvl]\ntimeout_s = 30\n'))
     assert main(["run", str(sc), "--out", str(tmp_path / "r"), "--no-figures"]) == 0
-    assert _tmp_fmu_dirs() <= before
+    assert _fmu_dirs(private_tmp) == []
 
 
 def test_unclosed_master_cleans_up_at_process_exit(project_fmus):
@@ -183,3 +191,18 @@ def test_unclosed_master_cleans_up_at_process_exit(project_fmus):
                          check=True, timeout=120)
     root = Path(out.stdout.strip())
     assert root.name.startswith("uwcosim_fmu_") and not root.exists()
+
+
+def test_campaign_workers_leave_no_folder(project_fmus, tmp_path, private_tmp):
+    """Campaign workers keep one master per scenario for many runs (instances reset, not
+    unzipped again) and clean up when the pool shuts down."""
+    from uwcosim.campaign import load_campaign
+    from uwcosim.campaign.run import run_campaign
+
+    spec = tmp_path / "c.toml"
+    spec.write_text(f'name = "c"\nseed = 1\nruns = 3\n[[variants]]\nname = "plain"\n'
+                    f'scenario = "{write(tmp_path, plain_toml(project_fmus))}"\n'
+                    f'set = ["run.duration=5"]\n')
+    summary = run_campaign(load_campaign(spec), tmp_path / "out", workers=2, figures=False)
+    assert summary["runs"] == 3 and not summary.get("failed")
+    assert _fmu_dirs(private_tmp) == []

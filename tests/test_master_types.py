@@ -150,3 +150,25 @@ def test_sources_into_non_real_inputs_are_checked(event_fmus, tmp_path, capsys, 
     assert main(["run", str(sc), "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and f"key '{section}.x" in err and message in err
+
+
+def test_run_logger_typed_columns(tmp_path):
+    """String, UInt64 (beyond 2**53) and the narrow types, written across row groups."""
+    from uwcosim.runlog import RunLogger, read_log
+
+    dtypes = {"s": object, "u": np.uint64, "i": np.int8, "b": np.bool_, "f": np.float32}
+    log = RunLogger(tmp_path / "l.parquet", ["x", "s", "u", "i", "b", "f"], ["flag"], {}, 2,
+                    dtypes)
+    assert log.exact_columns == ["s", "u"]
+    for k in range(5):
+        log.append(np.array([0.1 * k, 1.5, np.nan, np.nan, -k, k % 2, 0.1]), np.array([True]),
+                   [f"v{k}", 2**64 - 1 - k])
+    log.close()
+    table = pq.read_table(tmp_path / "l.parquet")
+    assert [str(table.schema.field(c).type) for c in table.column_names] == [
+        "double", "double", "string", "uint64", "int8", "bool", "float", "bool"]
+    assert table.column("s").to_pylist() == [f"v{k}" for k in range(5)]
+    assert table.column("u").to_pylist() == [2**64 - 1 - k for k in range(5)]
+    assert table.column("i").to_pylist() == [0, -1, -2, -3, -4]
+    cols, _ = read_log(tmp_path / "l.parquet")
+    assert cols["f"].dtype == np.float32 and cols["f"][0] == np.float32(0.1)

@@ -98,6 +98,8 @@ def test_plain_scenario_runs_end_to_end(project_fmus, tmp_path, capsys, private_
     assert summary["status"] == "ok" and summary["estimators"] == {}
     assert summary["steps"] == 40 and summary["end_time_s"] == 20.0
     assert {"fmu.vehicle_s", "fmu.dvl_s", "master_s"} <= set(summary["timing"])
+    assert summary["fmus"]["dvl"]["fmi_version"] == "2.0"
+    assert summary["fmus"]["vehicle"]["time_s"] == summary["timing"]["fmu.vehicle_s"] > 0
     report = (out / "report.md").read_text()
     assert "![signals](signals.png)" in report and "| vehicle |" in report
     assert f"uwcosim run plain.toml --seed {summary['seed']}" in report

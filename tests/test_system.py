@@ -115,6 +115,7 @@ def test_ball_me_matches_fmpy_and_the_bounce_times(event_fmus, tmp_path, version
                   3.0, 0.01)
     rc, cols, summary = run(sc, tmp_path / "r")
     assert rc == 0 and summary["status"] == "ok"
+    assert summary["fmus"]["ball"]["solver"] == "cvode"  # event indicators: root finding
     t, h, v, b = cols["time"], cols["ball.h"], cols["ball.v"], cols["ball.bounces"]
     assert h.min() > -1e-6  # the ball no longer falls through the floor
     exact = ball_bounce_times()

@@ -59,6 +59,12 @@ def summarize(master, bank, status: str, error: str, log_path) -> dict:
         "start_time_s": master.t0, "end_time_s": master.t,
         "timing": {k: round(v, 6) for k, v in master.timing().items()},
     }
+    summary["fmus"] = {
+        n.adapter.name: {"interface": n.adapter.interface, "fmi_version": n.adapter.md.fmiVersion,
+                         "solver": getattr(n.adapter, "solver_used", None)
+                         if n.adapter.interface == "me" else None,
+                         "period_steps": n.period, "time_s": round(n.time_s, 6)}
+        for n in master.nodes}
     stop = master.terminated
     if stop is not None:
         summary["termination"] = {"fmu": stop.fmu, "time_s": stop.time, "reason": stop.reason}

@@ -59,10 +59,10 @@ def summarize(master, bank, status: str, error: str, log_path) -> dict:
         "start_time_s": master.t0, "end_time_s": master.t,
         "timing": {k: round(v, 6) for k, v in master.timing().items()},
     }
+    solvers = master.me_solvers()
     summary["fmus"] = {
         n.adapter.name: {"interface": n.adapter.interface, "fmi_version": n.adapter.md.fmiVersion,
-                         "solver": getattr(n.adapter, "solver_used", None)
-                         if n.adapter.interface == "me" else None,
+                         "solver": solvers.get(n.adapter.name),
                          "period_steps": n.period, "time_s": round(n.time_s, 6)}
         for n in master.nodes}
     stop = master.terminated

@@ -511,11 +511,22 @@ class Master:
         return {n: {r: [a.var.name, a.scale, a.offset] for r, a in ad.varmap.aliases.items()}
                 for n, ad in self.adapters.items() if ad.varmap.aliases}
 
+    def me_solvers(self) -> dict[str, str]:
+        """``{fmu: "rk4" | "adaptive" | "cvode"}``: the integrator of each ME FMU (the last one
+        used; kept after :meth:`close`)."""
+        solvers = getattr(self, "_solvers", {})
+        for name, ad in self.adapters.items():
+            if ad.interface == "me" and getattr(ad, "_fmu", True) is not None:
+                solvers[name] = ad.solver_used
+        self._solvers = solvers
+        return dict(solvers)
+
     def fmu_hashes(self) -> dict[str, str]:
         return {n: a.sha256 for n, a in self.adapters.items()}
 
     def close(self) -> None:
         """Free every FMU instance and delete the unzipped archives (idempotent)."""
+        self.me_solvers()  # remembered for the summary
         try:
             for ad in self.adapters.values():
                 ad.close()

@@ -19,11 +19,9 @@ from uwcosim.master.adapter import FMUAdapter
 from uwcosim.master.proxy import ProxyAdapter
 
 try:
-    from event_fmus import VERSIONS, event_fmus
-    from test_event_fmus import ball_exact
+    from event_fmus import VERSIONS, ball_exact, event_fmus
 except ImportError:  # tests/ imported as a package
-    from tests.event_fmus import VERSIONS, event_fmus
-    from tests.test_event_fmus import ball_exact
+    from tests.event_fmus import VERSIONS, ball_exact, event_fmus
 
 __all__ = ["event_fmus"]  # fixture
 

@@ -178,3 +178,14 @@ def test_wrong_start_values_are_refused_before_the_run(event_fmus, version):
             ad.check_values({"nope": 1})
     finally:
         ad.close()
+
+
+def test_fmu_info_shows_every_type(event_fmus):
+    from uwcosim.fmu.info import fmu_info
+
+    rows = {line.split()[0]: line.split()[3] for line in
+            fmu_info(event_fmus[("TypedBlock", "3.0")]).splitlines()
+            if line.startswith("    ") and len(line.split()) > 3}
+    assert rows["f32_in"] == "Float32" and rows["u64_out"] == "UInt64"
+    assert rows["mode_in"] == "Enumeration(Mode)" and rows["gains"] == "Float64[3]"
+    assert rows["label"] == "String" and rows["b_in"] == "Boolean" and rows["i8_in"] == "Int8"

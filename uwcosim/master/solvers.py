@@ -36,6 +36,9 @@ from uwcosim.errors import FMUError
 
 #: event iterations allowed before the FMU is declared not converging
 MAX_EVENT_ITERATIONS = 1000
+#: CVode's internal steps allowed per call (fmpy: 500, enough for its output intervals; a
+#: master's communication step may be long). The results do not depend on it.
+MAX_CVODE_STEPS = 100_000
 #: event times kept in :attr:`ModelExchange.event_times`
 MAX_LOGGED_EVENTS = 100_000
 
@@ -297,7 +300,7 @@ class ModelExchange:
             nx=self.nx, nz=self.nz, get_x=self._cb_get_x, set_x=self._cb_set_x,
             get_dx=self._cb_get_dx, get_z=self._cb_get_z, get_nominals=self._cb_get_nominals,
             set_time=self._cb_set_time, input=_NoInput(), startTime=t, maxStep=self.max_step,
-            relativeTolerance=self.ad.rtol)
+            relativeTolerance=self.ad.rtol, maxNumSteps=MAX_CVODE_STEPS)
 
     def _integrate(self, time: float, t_next: float) -> tuple[bool, float]:
         """CVode from ``time`` to ``t_next`` or the first root: ``(state event, time)``."""

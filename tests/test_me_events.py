@@ -237,3 +237,15 @@ def test_discrete_inputs_are_set_again_after_a_reset(event_fmus, version):
             assert ad.get_outputs(b_out, 0.5)[0] == 5.0
     finally:
         ad.close()
+
+
+def test_a_solver_failure_is_an_fmu_error(event_fmus):
+    ad = FMUAdapter("ball", event_fmus[("BouncingBall", "3.0")], "me")
+    b = ad.bind([])
+    try:
+        ad.instantiate({"g": float("nan")}, {}, 0.0, 3.0)  # NaN derivatives
+        with pytest.raises(FMUError, match="FMU 'ball' .*CVode failed between t=0 and 0.1"):
+            for k in range(10):
+                ad.do_step(k * 0.1, 0.1, b, None)
+    finally:
+        ad.close()

@@ -167,6 +167,8 @@ class Master:
             self._check_input(dst, key, drivers, src)
             problem = vartypes.connection_problem(self.out_vars[src], self._variable(dst, key))
             if problem:
+                if problem.startswith("cannot connect") and " (" in problem:
+                    problem = problem.split(" (", 1)[1].rstrip(")")  # the names are ours
                 raise ScenarioError(
                     f"{self._where(key)}: cannot connect {src!r} ({self.out_vars[src].type}) "
                     f"to {dst!r} ({self._variable(dst, key).type}): {problem}")

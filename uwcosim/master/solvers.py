@@ -172,6 +172,8 @@ class ModelExchange:
         self._iterate(t)
         if self.ad.terminated is None:
             self.ad._guard("enterContinuousTimeMode", self.ad._fmu.enterContinuousTimeMode, t)
+        if self.next_event is not None:
+            self.solver_name = "cvode"  # a time event from now on: the event-aware path
         if self.cvode is not None:
             self.cvode.reset(t)
 
@@ -257,8 +259,6 @@ class ModelExchange:
             return
         if self._cflags[0].value:
             self._event(t)
-            if self.next_event is not None:
-                self.solver_name = "cvode"  # a time event from now on: the event-aware path
 
     # -- event-aware (CVode) ------------------------------------------------------------------
     # CVode's callbacks (pointer, size): status checked inline, they run per right-hand side

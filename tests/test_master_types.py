@@ -172,3 +172,20 @@ def test_run_logger_typed_columns(tmp_path):
     assert table.column("i").to_pylist() == [0, -1, -2, -3, -4]
     cols, _ = read_log(tmp_path / "l.parquet")
     assert cols["f"].dtype == np.float32 and cols["f"][0] == np.float32(0.1)
+
+
+@pytest.mark.parametrize("version", ["2.0", "3.0"])
+@pytest.mark.parametrize("interface", ["cs", "me"])
+def test_step_events_through_the_master(event_fmus, tmp_path, version, interface):
+    """TypedBlock with ``y_wrap``: completedIntegratorStep asks for an event once y >= y_wrap
+    (ME; CS handles it inside doStep); the event update wraps y and counts."""
+    path = event_fmus[("TypedBlock", version)]
+    sc = scenario(tmp_path, {"tb": {"path": path, "interface": interface,
+                                    "parameters": {"y_wrap": 0.3}}}, 2.0, 0.01,
+                  log=["tb.y", "tb.wraps"])
+    rc, cols, _ = run(sc, tmp_path / "r")
+    assert rc == 0
+    t, y, wraps = cols["time"], cols["tb.y"], cols["tb.wraps"]
+    # y integrates d_in = 0.5: y + wraps * y_wrap = 0.5 t; y stays below y_wrap
+    np.testing.assert_allclose(y + 0.3 * wraps, 0.5 * t, rtol=0, atol=1e-9)
+    assert wraps[-1] == 3 and y.max() < 0.3 + 0.5 * 0.01 and wraps.dtype == np.int32

@@ -124,3 +124,18 @@ def test_cli_relative_out_with_a_library_that_does_not_load(dvl, tmp_path):
     assert "Traceback" not in r.stderr
     assert r.stderr.strip().count("\n") == 0
     assert "cannot instantiate FMU 'dvl'" in r.stderr and "shared library" in r.stderr
+
+
+def test_an_unzipped_fmu_folder_is_used_where_it_is(dvl, tmp_path):
+    folder = tmp_path / "DVL"
+    with zipfile.ZipFile(dvl) as zf:
+        zf.extractall(folder)
+    ad = FMUAdapter("dvl", folder)
+    out = ad.bind(["vx_m"])
+    try:
+        ad.instantiate({}, {}, 0.0, 1.0)
+        ad.do_step(0.0, 1.0, ad.bind([]), None)
+        assert ad.get_outputs(out, 1.0).shape == (1,)
+    finally:
+        ad.close()
+    assert (folder / "modelDescription.xml").is_file()  # not deleted by close()

@@ -197,6 +197,8 @@ class FMUAdapter:
         del self.messages[:-20]
 
     def _unzip(self) -> str:
+        if self.path.is_dir():  # an unzipped FMU: used where it is
+            return str(self.path)
         if self.unzip_dir is not None:
             return str(unzip(self.path, self.unzip_dir))
         if self._own_unzip is None:

@@ -47,11 +47,9 @@ from uwcosim.master.sources import (
     StageInputs,
     TableControl,
     WaypointHeading,
+    build_sensors,
     control_problem,
-    gaussian,
-    loss_mask,
-    stream,
-    white_noise,
+    sample_sources,
 )
 from uwcosim.master.system import System, Termination, from_scenario
 from uwcosim.master.varmap import ROLES, load_entries
@@ -294,37 +292,14 @@ class Master:
         return StageInputs(pairs) if pairs else None
 
     def _sample_sources(self) -> None:
-        n = self.n_steps + 1
-        times = self.t0 + self.h * np.arange(n)
-        cols, slots = [], []
-        for cname, ctl in self.controls.items():
-            if isinstance(ctl, TableControl):
-                cols.append(ctl.samples(times)[:, None])
-                slots.append([self.slots[f"controls.{cname}"]])
-        for nname, nz in self.system.noise.items():
-            cols.append(white_noise(stream(self.seed, f"noise:{nname}"), n, nz.psd, self.h))
-            slots.append([self.slots[f"noise.{nname}.{i}"] for i in range(len(nz.targets))])
-        for sname, s in self.system.sensors.items():
-            if s.noise_inputs:
-                cols.append(gaussian(stream(self.seed, f"sensor-noise:{sname}"), n, s.sigma))
-                slots.append([self.slots[f"sensornoise.{sname}.{i}"]
-                              for i in range(len(s.noise_inputs))])
-        self.source_table = np.hstack(cols) if cols else np.zeros((n, 0))
-        self.source_slots = np.array([s for group in slots for s in group], dtype=np.intp)
-        self.dynamic = [(self.slots[f"controls.{c}"], ctl) for c, ctl in self.controls.items()
-                        if not isinstance(ctl, TableControl)]
+        self.source_table, self.source_slots, self.dynamic = sample_sources(
+            self.system, self.controls, self.slots, self.seed, self.n_steps + 1)
 
     def _build_sensors(self) -> dict[str, Sensor]:
-        out = {}
-        n = self.n_steps + 1
-        for sname, s in self.system.sensors.items():
-            slots = np.array([self._numeric_slot(o, f"sensors.{sname}.outputs")
-                              for o in s.outputs], dtype=np.intp)
-            k = np.arange(n)
-            sampled = (k % s.period == 0) & (k > 0)
-            received = sampled & loss_mask(stream(self.seed, f"loss:{sname}"), n, s.loss)
-            out[sname] = Sensor(sname, list(s.outputs), slots, s.period, received, sampled)
-        return out
+        slots = {sname: np.array([self._numeric_slot(o, f"sensors.{sname}.outputs")
+                                  for o in s.outputs], dtype=np.intp)
+                 for sname, s in self.system.sensors.items()}
+        return build_sensors(self.system, slots, self.seed, self.n_steps + 1)
 
     def reset(self, seed: int | None = None) -> None:
         """Prepare another run of the same system (``seed`` or the system's): new noise,

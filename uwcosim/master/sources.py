@@ -159,3 +159,37 @@ class Sensor:
     period: int
     received: np.ndarray  # [n_steps + 1] bool: sampled and not lost at step k
     sampled: np.ndarray = field(default=None)
+
+
+def sample_sources(system, controls: dict, slots: dict[str, int], seed: int, n: int):
+    """The open-loop sources of ``system`` sampled on the ``n`` grid points, from the seed's
+    streams: ``(table [n, m], bus slots [m], [(slot, closed-loop control)])``."""
+    times = system.start_time + system.step * np.arange(n)
+    cols, where = [], []
+    for cname, ctl in controls.items():
+        if isinstance(ctl, TableControl):
+            cols.append(ctl.samples(times)[:, None])
+            where.append([slots[f"controls.{cname}"]])
+    for nname, nz in system.noise.items():
+        cols.append(white_noise(stream(seed, f"noise:{nname}"), n, nz.psd, system.step))
+        where.append([slots[f"noise.{nname}.{i}"] for i in range(len(nz.targets))])
+    for sname, s in system.sensors.items():
+        if s.noise_inputs:
+            cols.append(gaussian(stream(seed, f"sensor-noise:{sname}"), n, s.sigma))
+            where.append([slots[f"sensornoise.{sname}.{i}"] for i in range(len(s.noise_inputs))])
+    table = np.hstack(cols) if cols else np.zeros((n, 0))
+    flat = np.array([s for group in where for s in group], dtype=np.intp)
+    dynamic = [(slots[f"controls.{c}"], ctl) for c, ctl in controls.items()
+               if not isinstance(ctl, TableControl)]
+    return table, flat, dynamic
+
+
+def build_sensors(system, slots: dict[str, np.ndarray], seed: int, n: int) -> dict[str, Sensor]:
+    """The sensors of ``system`` with their sampling and (seeded) loss over ``n`` grid points."""
+    out = {}
+    k = np.arange(n)
+    for sname, s in system.sensors.items():
+        sampled = (k % s.period == 0) & (k > 0)
+        received = sampled & loss_mask(stream(seed, f"loss:{sname}"), n, s.loss)
+        out[sname] = Sensor(sname, list(s.outputs), slots[sname], s.period, received, sampled)
+    return out

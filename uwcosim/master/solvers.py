@@ -28,6 +28,7 @@ integration at that time and sets :attr:`FMUAdapter.terminated`.
 from __future__ import annotations
 
 import ctypes
+import functools
 import math
 
 import numpy as np
@@ -79,13 +80,26 @@ class _NoInput:
         return None
 
 
+@functools.cache
 def _cvode_class():
     from fmpy.sundials import CVodeSolver
+    from fmpy.sundials.libraries import sundials_core
+    from fmpy.sundials.sundials_context import SUNContext_PushErrHandler
+    from fmpy.sundials.sundials_types import SUNContext
 
     class CVode(CVodeSolver):
         """fmpy's CVode with callbacks that report an FMU error instead of printing it."""
 
         error: Exception | None = None
+
+        def __init__(self, **kwargs) -> None:
+            super().__init__(**kwargs)
+            # only fmpy's handler (it keeps the message for the exception): SUNDIALS' default
+            # one would also print it to stderr, and the CLI's errors are one line
+            clear = sundials_core.SUNContext_ClearErrHandlers
+            clear.argtypes, clear.restype = [SUNContext], ctypes.c_int
+            if clear(self.sunctx) == 0:
+                SUNContext_PushErrHandler(self.sunctx, self.ehfun_, None)
 
         def f(self, t, y, ydot, user_data):
             try:
@@ -315,8 +329,10 @@ class ModelExchange:
             err, self.cvode.error = self.cvode.error, None
             if isinstance(err, FMUError):
                 raise err from None
+            info = self.cvode.error_info
+            why = err or (info[3] if info else exc)
             raise FMUError(f"FMU '{self.ad.name}' ({self.ad.path.name}): CVode failed between "
-                           f"t={time:g} and {t_next:g} ({err or exc})") from None
+                           f"t={time:g} and {t_next:g} ({why})") from None
         return bool(state_event), float(reached)
 
     def _step_events(self, t: float, t_end: float, inputs, input_fn) -> float:

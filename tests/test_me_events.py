@@ -250,3 +250,19 @@ def test_a_solver_failure_is_an_fmu_error(event_fmus, capfd):
     finally:
         ad.close()
     assert capfd.readouterr().err == ""  # SUNDIALS prints nothing: the CLI error is one line
+
+
+def test_worker_process_gives_the_same_events_and_types(event_fmus):
+    path = event_fmus[("BouncingBall", "2.0")]
+    local, _, rows = run_adapter(path, "me", ["h", "v", "bounces"], 3.0, 0.05)
+    local.close()
+    proxy, _, rows_p = run_adapter(path, "me", ["h", "v", "bounces"], 3.0, 0.05, cls=_Proxy)
+    try:
+        assert proxy.solver_used == "cvode"
+        assert np.array_equal(rows, rows_p)  # bit-identical
+        b = proxy.bind(["bounces", "h"])
+        proxy.get_outputs(b, 3.0)
+        bounces, h = b.native()
+        assert bounces == 11 and type(bounces) is int and type(h) is float
+    finally:
+        proxy.close()

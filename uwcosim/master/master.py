@@ -163,13 +163,19 @@ class Master:
             key = f"connections[{i}]"
             self._slot(src, key)
             self._check_input(dst, key, drivers, src)
-            problem = vartypes.connection_problem(self.out_vars[src], self._variable(dst, key))
+            dvar = self._variable(dst, key)
+            svar = self.out_vars.get(src)  # None: a source of the master (a float)
+            if svar is None:
+                problem = None if vartypes.kind(dvar) == "float" else "expected a Real input"
+            else:
+                problem = vartypes.connection_problem(svar, dvar)
             if problem:
                 if problem.startswith("cannot connect") and " (" in problem:
                     problem = problem.split(" (", 1)[1].rstrip(")")  # the names are ours
                 raise ScenarioError(
-                    f"{self._where(key)}: cannot connect {src!r} ({self.out_vars[src].type}) "
-                    f"to {dst!r} ({self._variable(dst, key).type}): {problem}")
+                    f"{self._where(key)}: cannot connect {src!r} "
+                    f"({'Float64' if svar is None else svar.type}) to {dst!r} ({dvar.type}): "
+                    f"{problem}")
         self.drivers = drivers
         self.bus = np.zeros(len(self.slots))
         #: text of the String signals, by bus slot
@@ -225,8 +231,7 @@ class Master:
             role = f.role or (name if name in ROLES else None)
             ad.use_map(entries, role, where, prefix)
         # start values and parameters: every type, checked against the model description now
-        ad.check_values({**f.parameters, **f.start},
-                                    f"{self.system.where}: key 'fmus.{name}'")
+        ad.check_values({**f.parameters, **f.start}, f"{self.system.where}: key 'fmus.{name}'")
         return ad
 
     def _variable(self, signal: str, key: str):

@@ -189,3 +189,48 @@ def test_step_events_through_the_master(event_fmus, tmp_path, version, interface
     # y integrates d_in = 0.5: y + wraps * y_wrap = 0.5 t; y stays below y_wrap
     np.testing.assert_allclose(y + 0.3 * wraps, 0.5 * t, rtol=0, atol=1e-9)
     assert wraps[-1] == 3 and y.max() < 0.3 + 0.5 * 0.01 and wraps.dtype == np.int32
+
+
+@pytest.fixture(scope="module")
+def shout_fmu(tmp_path_factory):
+    """``Shout.fmu``: String input and outputs (pythonfmu, FMI 2.0 co-simulation)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    pytest.importorskip("pythonfmu", reason="pythonfmu is not installed")
+    src = Path(__file__).resolve().parent / "data" / "pythonfmu_strings" / "Shout.py"
+    out = tmp_path_factory.mktemp("shout")
+    r = subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", str(src), "-d",
+                        str(out)], capture_output=True, text=True, cwd=out, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    return out / "Shout.fmu"
+
+
+def test_string_connections_and_columns(shout_fmu, tmp_path):
+    fmus = {"a": {"path": shout_fmu, "parameters": {"prefix": "hey "}},
+            "b": {"path": shout_fmu, "start": {"s_in": "unused"}}}
+    sc = scenario(tmp_path, fmus, 0.3, 0.1, connections=[("a.s_out", "b.s_in")])
+    rc, _, summary = run(sc, tmp_path / "r")
+    assert rc == 0 and summary["status"] == "ok"
+    table = pq.read_table(tmp_path / "r/log.parquet")
+    assert table.schema.field("a.s_out").type == pa.string()
+    assert table.schema.field("a.n").type == pa.int32()
+    assert table.column("a.s_out").to_pylist() == ["HEY ABC"] * 4
+    # Gauss-Seidel: b reads a's String output of the same communication point
+    assert table.column("b.s_out").to_pylist() == ["HEY ABC"] * 4
+    assert table.column("b.n").to_pylist() == [7] * 4
+    assert table.column("a.t_str").to_pylist() == ["t=0.00", "t=0.10", "t=0.20", "t=0.30"]
+
+
+@pytest.mark.parametrize(("extra", "message"), [
+    ({"connections": [("a.s_out", "b.prefix")]}, "has causality 'parameter'"),
+    ({"connections": [("a.n", "b.s_in")]}, "a String connects only to a String"),
+    ({"sensors": {"s": {"outputs": ["a.s_out"]}}}, "is a String output"),
+])
+def test_string_misuse_is_one_line(shout_fmu, tmp_path, capsys, extra, message):
+    fmus = {"a": {"path": shout_fmu}, "b": {"path": shout_fmu}}
+    sc = scenario(tmp_path, fmus, 0.3, 0.1, **extra)
+    assert main(["run", str(sc), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message in err, err

@@ -368,7 +368,7 @@ class Master:
             params.update((start_overrides or {}).get(name, {}))
             self._set_text(node)
             np.take(self.bus, node.in_slots, out=node.inputs.view)
-            start = {**self._input_values(node), **f.start}
+            start = {**f.start, **self._input_values(node)}  # driven inputs: their driver
             try:
                 node.adapter.instantiate(params, start, self.t0, t_stop)
             except FMUError as exc:

@@ -315,3 +315,16 @@ def test_system_built_in_code_as_in_the_readme(event_fmus):
                                np.ceil(exact / 0.01) * 0.01, rtol=0, atol=1e-9)
     assert h.min() > -1e-6
     assert not Path(m.unzip_root).exists()
+
+
+def test_termination_of_an_fmu_in_a_worker_process(event_fmus, tmp_path):
+    """``timeout_s``: the FMU runs in a worker process; its request to stop comes through."""
+    fmus = {"stair": {"path": event_fmus[("Stair", "2.0")], "timeout_s": 30,
+                      "parameters": {"t_terminate": 0.55}},
+            "ft": {"path": event_fmus[("Feedthrough", "3.0")], "interface": "me"}}
+    sc = scenario(tmp_path, fmus, 2.0, 0.1, connections=[("stair.counter", "ft.iu")])
+    rc, cols, summary = run(sc, tmp_path / "r")
+    assert rc == 0 and summary["status"] == "terminated"
+    assert summary["termination"] == {"fmu": "stair", "time_s": 0.55,
+                                      "reason": summary["termination"]["reason"]}
+    np.testing.assert_allclose(cols["time"], [0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.55], atol=1e-12)

@@ -125,6 +125,24 @@ def test_stair_time_events_fire_at_their_times(event_fmus, version, h):
     assert np.array_equal(rows[:, 0], expected)
 
 
+@pytest.mark.parametrize("version", VERSIONS)
+def test_a_time_event_at_every_communication_point(event_fmus, version):
+    """period 0.1 on a 0.1 s grid: every step ends with a time event, handled at the grid
+    time; the counter is fmpy's."""
+    path = event_fmus[("Stair", version)]
+    ad, times, rows = run_adapter(path, "me", ["counter"], 2.0, 0.1, {"period": 0.1})
+    try:
+        assert len(ad.event_times) == 20
+        assert all(e in set(times) for e in ad.event_times)
+    finally:
+        ad.close()
+    assert np.array_equal(rows[:, 0], 1 + np.arange(21))
+    ref = fmpy.simulate_fmu(str(path), fmi_type="ModelExchange", stop_time=2.0,
+                            output_interval=0.1, start_values={"period": 0.1},
+                            output=["counter"])
+    assert np.array_equal(rows[:, 0], fmpy_grid(ref, times)["counter"])
+
+
 @pytest.mark.parametrize("t_term", [2.5, 2.25], ids=["at-a-step", "mid-step"])
 @pytest.mark.parametrize("interface", ["cs", "me"])
 @pytest.mark.parametrize("version", VERSIONS)

@@ -346,7 +346,8 @@ class ModelExchange:
             t_next, time_event = t_end, False
             ne = self.next_event
             if ne is not None and (ne < t_end or _close(ne, t_end)):
-                t_next, time_event = max(ne, time), True
+                # an event within rounding of the communication point happens there (fmpy too)
+                t_next, time_event = t_end if _close(ne, t_end) else max(ne, time), True
             if t_next > time and not _close(t_next, time):
                 state_event, time = self._integrate(time, t_next)
             else:

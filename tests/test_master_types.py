@@ -234,3 +234,22 @@ def test_string_misuse_is_one_line(shout_fmu, tmp_path, capsys, extra, message):
     assert main(["run", str(sc), "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and message in err, err
+
+
+@pytest.mark.parametrize("interface", ["cs", "me"])
+def test_boolean_and_enumeration_connections(event_fmus, tmp_path, interface):
+    """Feedthrough (FMI 2) Boolean and Integer outputs into TypedBlock (FMI 3) Boolean and
+    Enumeration inputs; the Boolean also into a Float64 input (allowed)."""
+    fmus = {"ft": {"path": event_fmus[("Feedthrough", "2.0")]},
+            "tb": {"path": event_fmus[("TypedBlock", "3.0")], "interface": interface}}
+    controls = {"b": {"target": "ft.bu", "table": [[0, 0], [0.25, 1], [0.55, 0]],
+                      "interpolation": "hold"},
+                "i": {"target": "ft.iu", "table": [[0, 1], [0.45, 3]], "interpolation": "hold"}}
+    conns = [("ft.by", "tb.b_in"), ("ft.iy", "tb.mode_in"), ("ft.by", "tb.d_in")]
+    sc = scenario(tmp_path, fmus, 1.0, 0.1, connections=conns, controls=controls)
+    rc, cols, _ = run(sc, tmp_path / "r")
+    assert rc == 0
+    np.testing.assert_array_equal(cols["tb.b_out"], ~cols["ft.by"])
+    np.testing.assert_array_equal(cols["tb.mode_out"], cols["ft.iy"])
+    np.testing.assert_array_equal(cols["tb.d_out"], cols["ft.by"].astype(float))
+    assert cols["ft.by"].any() and not cols["ft.by"].all()

@@ -217,6 +217,6 @@ def test_fmu_check_cli_exit_status(tmp_path, fmi3_vehicle, project_fmus):
     bad = tmp_path / "bad.fmu"
     bad.write_bytes(b"PK\x03\x04 truncated")
     r = cli(str(bad), "--role", "vehicle")
-    assert r.returncode == 1 and "not a readable FMU archive" in r.stdout
+    assert r.returncode == 1 and "not a valid FMU archive" in r.stdout
     r = cli(str(fmi3_vehicle), "--map", str(tmp_path / "nope.toml"))
     assert r.returncode == 2 and "variable map file" in r.stderr and "Traceback" not in r.stderr

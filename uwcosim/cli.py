@@ -23,9 +23,18 @@ from uwcosim.errors import UwcosimError
 def _print_result(result) -> None:
     from uwcosim.plots.run_figures import results_table
 
-    if result.summary.get("estimators"):
-        print(results_table(result.summary), end="")
-    t = result.summary["timing"]
+    s = result.summary
+    if s["estimators"]:
+        print(results_table(s), end="")
+    else:
+        print(f"status {s['status']}: {s['steps']} steps of {s['step_s']:g} s, "
+              f"t = {s['start_time_s']:g} .. {s['end_time_s']:g} s")
+    stop = s.get("termination")
+    if stop is not None:
+        reason = f": {stop['reason']}" if stop["reason"] else ""
+        print(f"uwcosim: FMU '{stop['fmu']}' requested termination at t={stop['time_s']:g}"
+              f"{reason} (run ended, log kept)", file=sys.stderr)
+    t = s["timing"]
     print(f"master overhead {1e6 * t['master_overhead_per_step_s']:.1f} us/step, "
           f"FMUs {1e6 * t['fmus_per_step_s']:.1f} us/step")
     print(f"run directory: {result.out_dir}")

@@ -18,6 +18,7 @@ import numpy as np
 from uwcosim import __version__
 from uwcosim.errors import RunInterrupted, UwcosimError
 from uwcosim.master.master import Master
+from uwcosim.master.varmap import noise_free_notes
 from uwcosim.models.bathymetry import Bathymetry, load_map, synthetic_bathymetry
 from uwcosim.runlog import RunLogger
 from uwcosim.scenario.load import LoadedScenario
@@ -56,13 +57,16 @@ class RunResult:
 class _LogHook:
     """Writes one log row per step from the master's bus and the estimator bank."""
 
-    def __init__(self, master: Master, bank, logger: RunLogger, signal_slots, model) -> None:
+    def __init__(self, master: Master, bank, logger: RunLogger, signal_slots, model,
+                 exact_slots=()) -> None:
         self.bank, self.logger, self.model = bank, logger, model
         self.sig = signal_slots
-        n_est = len(bank.tracks) if bank else 0
-        self.width = 1 + len(signal_slots) + (len(bank.meas_slots) if bank else 0) \
-            + (n_est * (2 * model.nx + 2) if bank else 0)
+        self.exact = list(exact_slots)
+        self.width = 1 + len(signal_slots)
+        if bank:
+            self.width += len(bank.meas_slots) + len(bank.tracks) * (2 * model.nx + 2)
         self.row = np.empty(self.width)
+        self.n_flags = len(logger.bool_columns)
 
     def __call__(self, master: Master) -> None:
         row = self.row
@@ -86,7 +90,18 @@ class _LogHook:
                     row[i:i + 2 * nx + 2] = np.nan
                 i += 2 * nx + 2
             flags += [tr.diverged_at is not None for tr in self.bank.tracks]
-        self.logger.append(row, np.array(flags, dtype=bool))
+        self.logger.append(row, np.array(flags, dtype=bool),
+                           [master.native.get(s) for s in self.exact])
+
+    def final(self, master: Master, t: float) -> None:
+        """The last row of a run an FMU stopped between two communication points: the signals
+        at ``t`` (the stopped FMU's outputs at its termination time; the others' at the last
+        communication point), no measurements or estimates."""
+        row = np.full(self.width, np.nan)
+        row[0] = t
+        row[1:1 + len(self.sig)] = master.bus[self.sig]
+        self.logger.append(row, np.zeros(self.n_flags, dtype=bool),
+                           [master.native.get(s) for s in self.exact])
 
 
 def _columns(master: Master, bank, model) -> tuple[list[str], list[int], list[str]]:
@@ -174,8 +189,10 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
             meta["map"] = "map.bin"
         if master.variable_maps():  # third-party FMUs: roles, variables and conversions
             meta["variable_maps"] = master.variable_maps()
-        logger = RunLogger(log_path, cols, flags, meta, spec.log.chunk_steps)
-        hook = _LogHook(master, bank, logger, np.array(slots, dtype=np.intp), model)
+        dtypes = {c: master.signal_dtype(c) for c in cols if c in master.out_vars}
+        logger = RunLogger(log_path, cols, flags, meta, spec.log.chunk_steps, dtypes)
+        exact = [master.slots[c] for c in logger.exact_columns]
+        hook = _LogHook(master, bank, logger, np.array(slots, dtype=np.intp), model, exact)
         hook(master)
         master.hooks.append(hook)
         if bank is not None and spec.output.density_snapshots:
@@ -188,6 +205,9 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
         if progress is not None:
             master.hooks.append(progress)
         master.run_until(master.t0 + master.n_steps * master.h)
+        stop = master.terminated
+        if stop is not None and stop.time > master.t + 1e-9 * master.h:
+            hook.final(master, stop.time)
     except KeyboardInterrupt:
         failure = RunInterrupted(f"interrupted at t={master.t:g}")
     except UwcosimError as exc:
@@ -199,10 +219,14 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
             master.close()
     status = "ok" if failure is None else (
         "interrupted" if isinstance(failure, RunInterrupted) else "failed")
+    if failure is None and master.terminated is not None:
+        status = "terminated"
     summary = summarize(master, bank, status, str(failure or ""), log_path)
     summary["scenario_file"] = str(loaded.path)
-    if getattr(master, "noise_free", None):
-        summary["notes"] = master.noise_free_notes()
+    if master.noise_free:
+        summary["notes"] = noise_free_notes(
+            master.system, master.noise_free,
+            spec.model is not None and spec.model.q_psd is not None)
     if snapshots is not None:
         snapshots.save(out_dir / "densities.npz", list(model.state_names))
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2, sort_keys=True))
@@ -211,8 +235,14 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
         if logger is not None:
             failure.args = (f"{failure} (log up to t={master.t:g} kept in {log_path})",)
         raise failure
-    if (spec.output.figures if figures is None else figures) and bank:
+    if not (spec.output.figures if figures is None else figures):
+        return result
+    if bank:
         from uwcosim.report import report_run
 
         report_run(out_dir)
+    else:
+        from uwcosim.plots.signals import write_signal_report
+
+        write_signal_report(out_dir)
     return result

@@ -5,6 +5,8 @@ the time average of the squared error, over steps 1..K), per-axis RMSE, ANEES (t
 the NEES divided by the state dimension; 1 for a consistent filter), the fraction of NIS values
 inside their two-sided chi-square 95% band, the time per step (median and 95th percentile) and
 the divergence flag. Timing: wall time in each FMU, in the master itself and per estimator.
+A plain co-simulation run (no estimators) has an empty ``estimators``; a run an FMU stopped has
+status ``terminated`` and ``termination`` ``{fmu, time_s, reason}``.
 """
 
 from __future__ import annotations
@@ -52,10 +54,21 @@ def estimator_metrics(cols: dict, name: str, truth: list[str], states: list[str]
 
 def summarize(master, bank, status: str, error: str, log_path) -> dict:
     summary = {
-        "scenario": master.spec.name, "seed": master.seed, "status": status, "error": error,
+        "scenario": master.system.name, "seed": master.seed, "status": status, "error": error,
         "steps": master.k, "step_s": master.h, "estimators": {},
+        "start_time_s": master.t0, "end_time_s": master.t,
         "timing": {k: round(v, 6) for k, v in master.timing().items()},
     }
+    solvers = master.me_solvers()
+    summary["fmus"] = {
+        n.adapter.name: {"interface": n.adapter.interface, "fmi_version": n.adapter.md.fmiVersion,
+                         "solver": solvers.get(n.adapter.name),
+                         "period_steps": n.period, "time_s": round(n.time_s, 6)}
+        for n in master.nodes}
+    stop = master.terminated
+    if stop is not None:
+        summary["termination"] = {"fmu": stop.fmu, "time_s": stop.time, "reason": stop.reason}
+        summary["end_time_s"] = max(master.t, stop.time)
     k = max(master.k, 1)
     summary["timing"]["master_overhead_per_step_s"] = master.master_time_s / k
     summary["timing"]["fmus_per_step_s"] = sum(n.time_s for n in master.nodes) / k

@@ -85,6 +85,43 @@ def _capabilities(md) -> list[str]:
     return lines
 
 
+def me_solver_lines(path: Path, md, timeout_s: float, report: CheckReport) -> None:
+    """Which integrator the master uses for the FMU as model exchange, and why.
+
+    Event indicators are read from the model description; time events are known only after
+    initialization, so an FMU without event indicators is initialized (default parameters) in
+    a worker process to see whether it defines a time event."""
+    from uwcosim.master.proxy import ProxyAdapter
+
+    nz = int(md.numberOfEventIndicators or 0)
+    nx = int(md.numberOfContinuousStates or 0)
+    head = f"  ME solver         {nx} continuous state(s), {nz} event indicator(s): "
+    if nz:
+        report.lines.append(head + "state events -> the event-aware solver (CVode with root "
+                            "finding) will be used, not the fixed-step RK4 fast path")
+        return
+    ex = md.defaultExperiment
+    t_stop = float(ex.stopTime) if ex is not None and ex.stopTime else 10.0
+    ad = ProxyAdapter("probe", path, "me", "rk4", 1, 1e-8, timeout_s)
+    try:
+        ad.instantiate({}, {}, 0.0, t_stop)
+        used = ad.solver_used
+    except (FMUError, ScenarioError) as exc:
+        report.warnings.append(f"ME solver: could not initialize the FMU to look for time "
+                               f"events ({exc})")
+        report.lines.append(head + "time events unknown (initialization failed)")
+        return
+    finally:
+        ad.close()
+    if used == "cvode":
+        report.lines.append(head + "a time event after initialization -> the event-aware "
+                            "solver (CVode, stops at each time event) will be used")
+    else:
+        report.lines.append(head + "no time event at initialization -> fixed-step RK4 fast "
+                            "path (a step event is handled at the end of the step; a later time "
+                            "event switches to the event-aware solver)")
+
+
 def _fmt_affine(scale: float, offset: float) -> str:
     if scale == 1.0 and offset == 0.0:
         return "theirs"
@@ -255,6 +292,8 @@ def check_fmu(path: str | Path, role: str | None = "vehicle", map_file: str | No
     rep.warnings += vmap.warnings
     if map_problems:
         return rep
+    if md.modelExchange is not None and interface != "cs":
+        me_solver_lines(path, md, timeout_s, rep)
     if role:
         rep.lines += _map_lines(vmap, role)
         rep.problems += missing_roles(vmap, role)

@@ -1,14 +1,16 @@
 """Describe and check FMUs: :func:`fmu_info` (a readable summary) and :func:`validate`.
 
-Works on any FMI 2.0 / 3.0 FMU, not only the ones :mod:`uwcosim.fmu.build` produces.
+Works on any FMI 2.0 / 3.0 FMU, not only the ones :mod:`uwcosim.fmu.build` produces. The
+archive checks are those of the master (:mod:`uwcosim.master.archive`).
 """
 
 from __future__ import annotations
 
-import zipfile
 from pathlib import Path
 
 from uwcosim.errors import FMUError
+from uwcosim.master.archive import archive_problems, binary_problems, read_model
+from uwcosim.master.vartypes import describe
 
 
 def _yes(flag) -> str:
@@ -17,68 +19,20 @@ def _yes(flag) -> str:
 
 def _check_archive(path: Path) -> list[str]:
     """Problems that make the file unusable as an FMU archive (empty list if readable)."""
-    if not path.exists():
-        return [f"{path}: file not found"]
-    if path.is_dir():
-        return [] if (path / "modelDescription.xml").is_file() else [
-            f"{path}: folder without modelDescription.xml"]
-    try:
-        with zipfile.ZipFile(path) as zf:
-            bad = zf.testzip()
-            if bad is not None:
-                return [f"{path}: corrupt archive (member {bad!r} fails its CRC check)"]
-            if "modelDescription.xml" not in zf.namelist():
-                return [f"{path}: no modelDescription.xml in the archive"]
-    except zipfile.BadZipFile as exc:
-        return [f"{path}: not a readable FMU archive ({exc})"]
-    except (OSError, EOFError, ValueError, NotImplementedError) as exc:
-        return [f"{path}: cannot read the archive ({exc})"]
-    except Exception as exc:  # noqa: BLE001 - zlib errors of truncated members
-        return [f"{path}: corrupt archive ({type(exc).__name__}: {exc})"]
-    return []
+    return archive_problems(path)
 
 
 def _read(path: Path):
-    from fmpy import read_model_description
-
-    problems = _check_archive(path)
+    problems = archive_problems(path)
     if problems:
         raise FMUError(problems[0])
-    try:
-        return read_model_description(str(path), validate=False)
-    except Exception as exc:  # noqa: BLE001 - fmpy raises bare Exceptions
-        raise FMUError(f"{path}: cannot read modelDescription.xml ({exc})") from None
-
-
-def _names(path: Path) -> list[str]:
-    if path.is_dir():
-        return [p.relative_to(path).as_posix() for p in path.rglob("*") if p.is_file()]
-    with zipfile.ZipFile(path) as zf:
-        return zf.namelist()
+    return read_model(path)
 
 
 def platform_problems(path: str | Path, md=None) -> list[str]:
     """A problem string if the FMU has no binary for this platform (empty list otherwise)."""
-    import fmpy
-
     path = Path(path)
-    md = md or _read(path)
-    is_fmi3 = md.fmiVersion.startswith("3")
-    plat = fmpy.platform_tuple if is_fmi3 else fmpy.platform
-    names = _names(path)
-    problems = []
-    for iface in (md.modelExchange, md.coSimulation):
-        if iface is None:
-            continue
-        lib = f"binaries/{plat}/{iface.modelIdentifier}{fmpy.sharedLibraryExtension}"
-        if lib not in names:
-            found = sorted({n.split("/")[1] for n in names
-                            if n.startswith("binaries/") and n.count("/") >= 2})
-            has = ", ".join(found) if found else "none"
-            problems.append(f"{path}: no binary for this platform ({plat}): expected {lib}; "
-                            f"binaries in the archive: {has}")
-            break
-    return problems
+    return binary_problems(path, md or _read(path))
 
 
 def validate(path: str | Path) -> list[str]:
@@ -133,6 +87,9 @@ def fmu_info(path: str | Path) -> str:
     except Exception:  # noqa: BLE001
         plats = "unknown"
     lines.append(f"  platforms         {plats}")
+    missing = binary_problems(path, md)
+    lines.append("  this platform     " + ("binary ok" if not missing else
+                                          missing[0].split(": ", 1)[1]))
     for name, i in ifaces:
         dd = getattr(i, "providesDirectionalDerivatives", None)
         if dd is None:
@@ -151,7 +108,7 @@ def fmu_info(path: str | Path) -> str:
         lines.append(f"  default experiment start {_fmt(ex.startTime)}, stop "
                      f"{_fmt(ex.stopTime)}, step {_fmt(ex.stepSize)}")
     header = ("name", "causality", "variability", "type", "unit", "start", "vr")
-    rows = [header] + [(v.name, _fmt(v.causality), _fmt(v.variability), v.type,
+    rows = [header] + [(v.name, _fmt(v.causality), _fmt(v.variability), describe(v),
                         _fmt(v.unit or (v.declaredType.unit if v.declaredType else None)),
                         repr(v.start) if v.type == "String" and v.start is not None
                         else _fmt(v.start), str(v.valueReference))

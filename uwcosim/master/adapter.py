@@ -1,138 +1,51 @@
 """One FMU instance behind one small interface, whatever its FMI version and interface type.
 
 :class:`FMUAdapter` wraps fmpy's low-level classes (``FMU2Slave``, ``FMU3Slave`` for
-co-simulation; ``FMU2Model``, ``FMU3Model`` for model exchange, integrated here with fixed-step
-RK4 or an adaptive scipy solver). Everything that can be done once is done once: the archive is
-unzipped once, value references are resolved by name once, and :class:`Binding` keeps ctypes
-arrays (with numpy views on them) ready so a step costs only the FMI calls themselves.
+co-simulation; ``FMU2Model``, ``FMU3Model`` for model exchange, stepped by
+:class:`~uwcosim.master.solvers.ModelExchange`). Everything that can be done once is done once:
+the archive is checked (:mod:`uwcosim.master.archive`) and unzipped once, value references are
+resolved by name once, and :class:`~uwcosim.master.binding.Binding` keeps ctypes arrays (with
+numpy views on them) ready so a step costs only the FMI calls themselves. Every FMI 2/3 scalar
+type is handled (:mod:`uwcosim.master.vartypes`); FMI 3 arrays as parameters and start values.
+
+An FMU that asks to stop (co-simulation: FMI 2 ``fmi2Discard`` with ``fmi2Terminated``, FMI 3
+``terminateSimulation``; model exchange: ``terminateSimulation`` of an event update or of
+``completedIntegratorStep``) is not an error: ``do_step`` returns the time reached and
+:attr:`FMUAdapter.terminated` holds ``(time, reason)``.
 """
 
 from __future__ import annotations
 
 import ctypes
-import hashlib
+import os
 import shutil
 import tempfile
-import zipfile
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from uwcosim.errors import FMUError, ScenarioError
+from uwcosim.master.archive import (
+    archive_problems,
+    binary_problems,
+    open_description,
+    read_model,
+    sha256_file,
+    unzip,
+)
+from uwcosim.master.binding import Binding, make_binding
 from uwcosim.master.varmap import VariableMap, resolve_map
+from uwcosim.master.vartypes import FLOAT64, coerce, is_continuous_input, kind, type_info
+
+__all__ = ["Binding", "FMUAdapter", "read_description", "sha256_file"]
 
 STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 
 
-def sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
-def _build_hint(path: Path) -> str:
-    """The 'uwcosim fmu build' hint, for the project's own FMUs only."""
-    from uwcosim.fmu.build import FMI_VERSIONS, archive_name
-    from uwcosim.fmu.specs import MODELS
-
-    own = {archive_name(m, v) for m in MODELS for v in FMI_VERSIONS}
-    return " (build the project's FMUs with 'uwcosim fmu build')" if path.name in own else ""
-
-
-def read_description(path: Path):
+def read_description(path: Path, interface: str | None = None):
     """Model description of an FMU archive, with one-line errors for the usual faults."""
-    import fmpy
-    from fmpy.model_description import read_model_description
-
-    path = Path(path)
-    if not path.is_file():
-        raise FMUError(f"{path}: FMU not found{_build_hint(path)}")
-    try:
-        with zipfile.ZipFile(path) as zf:
-            bad = zf.testzip()
-            if bad is not None:
-                raise FMUError(f"{path}: corrupt FMU archive (bad CRC in {bad})")
-            names = zf.namelist()
-    except zipfile.BadZipFile as exc:
-        raise FMUError(f"{path}: not a valid FMU archive ({exc})") from None
-    if "modelDescription.xml" not in names:
-        raise FMUError(f"{path}: not an FMU (no modelDescription.xml in the archive)")
-    try:
-        md = read_model_description(str(path), validate=False)
-    except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for bad XML
-        raise FMUError(f"{path}: invalid modelDescription.xml ({exc})") from None
-    platforms = fmpy.supported_platforms(str(path))  # fmpy's names for FMI 2 and 3 alike
-    here = fmpy.platform
-    if here not in platforms:
-        raise FMUError(
-            f"{path}: no binary for this platform {here} (the FMU has: "
-            f"{', '.join(p for p in platforms if p not in ('c-code',)) or 'none'})"
-        )
-    return md
-
-
-class _Unzipped:
-    """Unzip each archive once per process; removed by :func:`cleanup_unzipped`."""
-
-    dirs: dict[str, str] = {}
-
-    @classmethod
-    def get(cls, path: Path, sha: str) -> str:
-        d = cls.dirs.get(sha)
-        if d is None:
-            from fmpy import extract
-
-            d = tempfile.mkdtemp(prefix="uwcosim_fmu_")
-            extract(str(path), unzipdir=d)
-            cls.dirs[sha] = d
-        return d
-
-
-def cleanup_unzipped() -> None:
-    for d in _Unzipped.dirs.values():
-        shutil.rmtree(d, ignore_errors=True)
-    _Unzipped.dirs.clear()
-
-
-@dataclass
-class Binding:
-    """Value references and a value buffer ready for one get or set call.
-
-    ``view`` holds the values in our units, ``raw`` (a numpy view on the ctypes buffer) in the
-    FMU's. Without a unit conversion they are the same array; with one (a variable map),
-    ``ours = scale * theirs + offset`` is applied to the whole vector in one numpy operation.
-    """
-
-    names: tuple[str, ...]
-    vr: ctypes.Array | None
-    buf: ctypes.Array | None
-    view: np.ndarray  # values in our units
-    raw: np.ndarray | None = None  # numpy view on buf (FMU units); None: same as view
-    scale: np.ndarray | None = None  # None: identity conversion
-    offset: np.ndarray | None = None
-
-    @property
-    def n(self) -> int:
-        return len(self.names)
-
-    @classmethod
-    def plain(cls, names) -> Binding:
-        """A binding without FMU buffers (values only), e.g. for an out-of-process FMU."""
-        return cls(tuple(names), None, None, np.zeros(len(names)))
-
-    def to_fmu(self) -> None:
-        if self.scale is not None:
-            np.subtract(self.view, self.offset, out=self.raw)
-            np.divide(self.raw, self.scale, out=self.raw)
-
-    def from_fmu(self) -> None:
-        if self.scale is not None:
-            np.multiply(self.raw, self.scale, out=self.view)
-            np.add(self.view, self.offset, out=self.view)
+    return open_description(path, interface)
 
 
 class FMUAdapter:
@@ -147,32 +60,47 @@ class FMUAdapter:
         substeps: int = 1,
         rtol: float = 1e-8,
         varmap: VariableMap | None = None,
+        unzip_dir: str | Path | None = None,
     ) -> None:
         self.name = name
         self.path = Path(path)
-        self.md = read_description(self.path)
-        self.sha256 = sha256_file(self.path)
+        problems = archive_problems(self.path)
+        if problems:
+            raise FMUError(problems[0])
+        self.md = read_model(self.path)
+        self.sha256 = sha256_file(self.path) if self.path.is_file() else ""
         self.fmi3 = self.md.fmiVersion.startswith("3")
         self.interface = interface
         self.solver = solver
         self.substeps = substeps
         self.rtol = rtol
+        self.unzip_dir = None if unzip_dir is None else Path(unzip_dir)
+        self._own_unzip: str | None = None
         self.fmu_variables = {v.name: v for v in self.md.modelVariables}
         self.varmap = varmap or VariableMap.identity(self.md)
         #: the variables under the names the master uses (roles of a variable map, or as is)
         self.variables = self.varmap.exposed
         self.messages: list[str] = []
-        kind = self.md.coSimulation if interface == "cs" else self.md.modelExchange
-        if kind is None:
+        #: ``(time, reason)`` once the FMU asked to stop the simulation, else None
+        self.terminated: tuple[float, str] | None = None
+        kind_ = self.md.coSimulation if interface == "cs" else self.md.modelExchange
+        if kind_ is None:
             have = [n for n, k in (("cs", self.md.coSimulation), ("me", self.md.modelExchange))
                     if k is not None]
             raise FMUError(
                 f"{self.path}: FMU '{name}' does not support interface '{interface}' "
                 f"(it supports: {', '.join(have)})"
             )
-        self.model_identifier = kind.modelIdentifier
+        problems = binary_problems(self.path, self.md, (interface,))
+        if problems:
+            raise FMUError(problems[0])
+        self.model_identifier = kind_.modelIdentifier
         self.nx = int(self.md.numberOfContinuousStates or 0) if interface == "me" else 0
+        self.nz = int(self.md.numberOfEventIndicators or 0) if interface == "me" else 0
         self._fmu = None
+        self._me = None
+        self._pending: list[Binding] = []  # typed bindings made before the library is loaded
+        self._typed: list[Binding] = []  # every typed binding (discrete inputs: last values)
         self._instantiated = False
         self.time_s = 0.0  # wall time spent in this FMU's calls (set by the master)
 
@@ -198,7 +126,12 @@ class FMUAdapter:
     def real_outputs(self) -> list[str]:
         """Names (as exposed) of the Real outputs, in model-description order."""
         return [n for n, v in self.variables.items()
-                if v.causality == "output" and v.type in ("Real", "Float64")]
+                if v.causality == "output" and v.type in FLOAT64]
+
+    def outputs(self) -> list[str]:
+        """Names (as exposed) of the scalar outputs of every supported type."""
+        return [n for n, v in self.variables.items() if v.causality == "output"
+                and kind(v) != "unsupported" and not getattr(v, "dimensions", None)]
 
     def feedthrough(self) -> dict[str, set[str]]:
         """``{output: {inputs it depends on directly}}`` under the exposed names."""
@@ -208,17 +141,48 @@ class FMUAdapter:
         return {ren[o]: {ren[i] for i in ins if i in ren}
                 for o, ins in feedthrough(self.md).items() if o in ren}
 
+    def _discrete_input(self, v) -> bool:
+        return self.interface == "me" and v.causality == "input" and not is_continuous_input(v)
+
     def bind(self, names: list[str] | tuple[str, ...]) -> Binding:
-        vrt = ctypes.c_uint32
-        vr = (vrt * len(names))(*[self.variable(n).valueReference for n in names])
-        buf = (ctypes.c_double * len(names))()
-        raw = np.ctypeslib.as_array(buf) if len(names) else np.zeros(0)
+        variables = [self.variable(n) for n in names]
+        for v in variables:
+            if kind(v) == "unsupported" or getattr(v, "dimensions", None):
+                raise FMUError(f"{self.path}: FMU '{self.name}': variable {v.name!r} has type "
+                               f"{v.type}{' (array)' if kind(v) != 'unsupported' else ''}, "
+                               f"which cannot be connected or logged")
         affine = [self.varmap.affine(n) for n in names]
-        if all(a == (1.0, 0.0) for a in affine):
-            return Binding(tuple(names), vr, buf, raw, raw)
-        scale = np.array([a[0] for a in affine])
-        offset = np.array([a[1] for a in affine])
-        return Binding(tuple(names), vr, buf, np.zeros(len(names)), raw, scale, offset)
+        b = make_binding(tuple(names), variables, affine, self.fmi3,
+                         [self._discrete_input(v) for v in variables])
+        if not b.groups:
+            return b
+        self._typed.append(b)
+        if self._fmu is not None:
+            self._resolve_groups(b)
+        else:
+            self._pending.append(b)
+        return b
+
+    def _resolve_groups(self, b: Binding) -> None:
+        for g in b.groups:
+            if isinstance(g.get, str):
+                g.get, g.set = self._raw[g.get], self._raw[g.set]
+
+    def check_values(self, values: dict, where: str = "") -> dict:
+        """Parameters/start values checked against the declared types and converted (native
+        Python values); ScenarioError naming the variable and the expected type otherwise."""
+        where = where or f"{self.path}: FMU '{self.name}'"
+        out = {}
+        for name, value in values.items():
+            alias = self.varmap.aliases.get(name)
+            if alias is not None:
+                out[name] = coerce(alias.start_var or alias.var, value, where)
+                continue
+            v = self.fmu_variables.get(name)
+            if v is None:
+                raise FMUError(f"{self.path}: FMU '{self.name}' has no variable {name!r}")
+            out[name] = coerce(v, value, where)
+        return out
 
     # -- life cycle -------------------------------------------------------------------------
     def _log(self, *args) -> None:
@@ -232,6 +196,16 @@ class FMUAdapter:
         self.messages.append(f"[{label}] {text}")
         del self.messages[:-20]
 
+    def _unzip(self) -> str:
+        if self.path.is_dir():  # an unzipped FMU: used where it is
+            return str(self.path)
+        if self.unzip_dir is not None:
+            return str(unzip(self.path, self.unzip_dir))
+        if self._own_unzip is None:
+            self._own_unzip = tempfile.mkdtemp(prefix="uwcosim_fmu_")
+            unzip(self.path, self._own_unzip)
+        return self._own_unzip
+
     def instantiate(self, parameters: dict, start: dict, t0: float, t_stop: float) -> None:
         """Instantiate, set parameters and start values, and initialize at ``t0``.
 
@@ -240,21 +214,22 @@ class FMUAdapter:
         """
         from fmpy import fmi2, fmi3
 
+        values = self.check_values({**parameters, **start})
+        self.terminated = None
         if self._fmu is not None:
             self.messages.clear()
             self._guard("reset", self._fmu.reset, t0)
-            self._guard("setup",
-                        lambda: self._initialize(self._fmu, parameters, start, t0, t_stop), t0)
+            self._guard("setup", lambda: self._initialize(self._fmu, values, t0, t_stop), t0)
             return
-
-        unzip = _Unzipped.get(self.path, self.sha256)
+        unzip_dir = self._unzip()
         guid = self.md.instantiationToken if self.fmi3 else self.md.guid
         cls = {
             (False, "cs"): fmi2.FMU2Slave, (False, "me"): fmi2.FMU2Model,
             (True, "cs"): fmi3.FMU3Slave, (True, "me"): fmi3.FMU3Model,
         }[(self.fmi3, self.interface)]
+        cwd = os.getcwd()  # fmpy changes into the binary's folder and, if loading fails, stays
         try:
-            fmu = cls(guid=guid, unzipDirectory=unzip, modelIdentifier=self.model_identifier,
+            fmu = cls(guid=guid, unzipDirectory=unzip_dir, modelIdentifier=self.model_identifier,
                       instanceName=self.name)
             if self.fmi3:
                 fmu.instantiate(logMessage=self._log, loggingOn=False)
@@ -271,62 +246,71 @@ class FMUAdapter:
             raise
         except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions here
             raise FMUError(f"{self.path}: cannot instantiate FMU '{self.name}' ({exc})") from None
+        finally:
+            if os.getcwd() != cwd:
+                os.chdir(cwd)
         self._fmu = fmu
         self._instantiated = True
         self._raw = fmu._functions
         self._c = fmu.component
-        self._guard("setup", lambda: self._initialize(fmu, parameters, start, t0, t_stop), t0)
         self._prepare_fast_calls()
+        for b in self._pending:
+            self._resolve_groups(b)
+        self._pending = []
+        self._guard("setup", lambda: self._initialize(fmu, values, t0, t_stop), t0)
 
-    def _initialize(self, fmu, parameters: dict, start: dict, t0: float, t_stop: float) -> None:
+    def _initialize(self, fmu, values: dict, t0: float, t_stop: float) -> None:
         if not self.fmi3:
             fmu.setupExperiment(startTime=t0)
-        values = {**parameters, **start}
-        self.set_values(values)
+        self.set_values(values, checked=True)
         if self.fmi3:
             fmu.enterInitializationMode(startTime=t0)
         else:
             fmu.enterInitializationMode()
         fmu.exitInitializationMode()
         if self.interface == "me":
-            self._event_iteration()
-            fmu.enterContinuousTimeMode()
+            from uwcosim.master.solvers import ModelExchange
 
-    def set_values(self, values: dict) -> None:
+            for b in self._typed:  # a new run: every discrete input is set again
+                for g in b.groups:
+                    g.last = None
+            self._me = ModelExchange(self, t0, t_stop)
+            self._me.initial_event(t0)
+
+    def set_values(self, values: dict, checked: bool = False) -> None:
         """Set parameters/start values of any type by name (setup only, not the hot path)."""
         fmu = self._fmu
+        if not checked:
+            values = self.check_values(values)
         for name, value in values.items():
             alias = self.varmap.aliases.get(name)
             if alias is not None:  # a role: its start variable (or itself), converted
                 v = alias.start_var or alias.var
                 value = alias.to_fmu(value)
             else:
-                v = self.fmu_variables.get(name)
-                if v is None:
-                    raise FMUError(f"{self.path}: FMU '{self.name}' has no variable {name!r}")
-            vr = [v.valueReference]
-            t = v.type
-            if t in ("Real", "Float64", "Float32"):
-                (fmu.setFloat64 if self.fmi3 else fmu.setReal)(vr, [float(value)])
-            elif t in ("Integer", "Int32", "Int64", "Enumeration", "UInt32"):
-                (fmu.setInt32 if self.fmi3 and t == "Int32" else
-                 fmu.setInt64 if self.fmi3 and t == "Int64" else
-                 fmu.setUInt32 if self.fmi3 and t == "UInt32" else
-                 fmu.setInt64 if self.fmi3 else fmu.setInteger)(vr, [int(value)])
-            elif t == "Boolean":
-                fmu.setBoolean(vr, [bool(value)])
-            elif t == "String":
-                fmu.setString(vr, [str(value)])
-            else:
-                raise FMUError(f"{self.path}: cannot set variable {name!r} of type {t}")
+                v = self.fmu_variables[name]
+            vals = value if isinstance(value, list) else [value]
+            suffix = type_info(v, self.fmi3)[2]
+            getattr(fmu, f"set{suffix}")([v.valueReference], vals)
 
-    def _event_iteration(self) -> None:
-        fmu = self._fmu
-        for _ in range(100):
-            need = (fmu.updateDiscreteStates() if self.fmi3 else fmu.newDiscreteStates())[0]
-            if not need:
-                return
-        raise FMUError(f"{self.path}: FMU '{self.name}': event iteration did not converge")
+    def get_values(self, names: list[str]) -> dict:
+        """Current values of any type by name (native Python values; arrays as lists)."""
+        out = {}
+        for name in names:
+            v = self.variable(name)
+            info = type_info(v, self.fmi3)
+            if info is None:
+                raise FMUError(f"{self.path}: FMU '{self.name}': cannot get {name!r} of type "
+                               f"{v.type}")
+            getter = getattr(self._fmu, f"get{info[2]}")
+            n = int(np.prod(v.shape)) if getattr(v, "dimensions", None) else 1
+            vals = getter([v.valueReference], n) if self.fmi3 else getter([v.valueReference])
+            vals = [bool(x) for x in vals] if info[0] == "bool" else [
+                x.decode("utf-8", "replace") if isinstance(x, bytes) else x for x in vals]
+            a = self.varmap.aliases.get(name)
+            out[name] = vals if n != 1 or getattr(v, "dimensions", None) else (
+                a.to_ours(vals[0]) if a is not None else vals[0])
+        return out
 
     def _prepare_fast_calls(self) -> None:
         p = "fmi3" if self.fmi3 else "fmi2"
@@ -336,21 +320,7 @@ class FMUAdapter:
             self._do_step = self._raw[f"{p}DoStep"]
             self._flags = [ctypes.c_bool() for _ in range(3)] + [ctypes.c_double()]
             self._flag_refs = [ctypes.byref(f) for f in self._flags]
-        else:
-            self._x = (ctypes.c_double * self.nx)()
-            self._dx = (ctypes.c_double * self.nx)()
-            self.xv = np.ctypeslib.as_array(self._x) if self.nx else np.zeros(0)
-            self.dxv = np.ctypeslib.as_array(self._dx) if self.nx else np.zeros(0)
-            self._set_time = self._raw[f"{p}SetTime"]
-            self._set_states = self._raw[f"{p}SetContinuousStates"]
-            self._get_states = self._raw[f"{p}GetContinuousStates"]
-            self._get_der = self._raw[
-                "fmi3GetContinuousStateDerivatives" if self.fmi3 else "fmi2GetDerivatives"
-            ]
-            self._completed = self._raw[f"{p}CompletedIntegratorStep"]
-            flag = ctypes.c_bool if self.fmi3 else ctypes.c_int
-            self._cflags = [flag(), flag()]
-            self._cflag_refs = [ctypes.byref(f) for f in self._cflags]
+            self._terminate_flag, self._early_flag = self._flags[1], self._flags[2]
 
     # -- hot path ---------------------------------------------------------------------------
     def _check(self, status: int, what: str, t: float) -> None:
@@ -363,109 +333,138 @@ class FMUAdapter:
     def _guard(self, what: str, fn: Callable, t: float):
         try:
             return fn()
-        except FMUError:
+        except (FMUError, ScenarioError):
             raise
         except Exception as exc:  # noqa: BLE001 - fmpy's FMICallException and friends
             last = f": {self.messages[-1]}" if self.messages else ""
             raise FMUError(f"FMU '{self.name}' ({self.path.name}): {what} failed at t={t:g} "
                            f"({exc}){last}") from None
 
-    def set_inputs(self, b: Binding, t: float) -> None:
-        if b.n:
-            if b.scale is not None:
-                b.to_fmu()
+    def _set_groups(self, b: Binding, groups, t: float) -> None:
+        b.to_fmu()
+        for g in groups:
+            b.raw_to_group(g)
             if self.fmi3:
-                st = self._set(self._c, b.vr, b.n, b.buf, b.n)
+                st = g.set(self._c, g.vr, g.n, g.buf, g.n)
             else:
-                st = self._set(self._c, b.vr, b.n, b.buf)
+                st = g.set(self._c, g.vr, g.n, g.buf)
             self._check(st, "set inputs", t)
 
+    def set_continuous(self, b: Binding, t: float) -> None:
+        """Set the inputs that may change in continuous-time mode (all of them for CS)."""
+        if not b.n:
+            return
+        if b.groups:
+            self._set_groups(b, b.continuous_groups, t)
+            return
+        if b.scale is not None:
+            b.to_fmu()
+        if self.fmi3:
+            st = self._set(self._c, b.vr, b.n, b.buf, b.n)
+        else:
+            st = self._set(self._c, b.vr, b.n, b.buf)
+        self._check(st, "set inputs", t)
+
+    def set_inputs(self, b: Binding, t: float) -> None:
+        """Set the inputs at a communication point. Model exchange: discrete inputs that changed
+        are set in event mode (with the event iteration that follows)."""
+        self.set_continuous(b, t)
+        if b.groups and self._me is not None and b.discrete_groups:
+            self._me.set_discrete(b, t)
+
     def get_outputs(self, b: Binding, t: float) -> np.ndarray:
-        if b.n:
-            if self.fmi3:
-                st = self._get(self._c, b.vr, b.n, b.buf, b.n)
-            else:
-                st = self._get(self._c, b.vr, b.n, b.buf)
+        if not b.n:
+            return b.view
+        if b.groups:
+            for g in b.groups:
+                if self.fmi3:
+                    st = g.get(self._c, g.vr, g.n, g.buf, g.n)
+                else:
+                    st = g.get(self._c, g.vr, g.n, g.buf)
+                self._check(st, "get outputs", t)
+            b.groups_to_raw()
+            return b.view
+        st = (self._get(self._c, b.vr, b.n, b.buf, b.n) if self.fmi3 else
+              self._get(self._c, b.vr, b.n, b.buf))
+        if st > 1:
             self._check(st, "get outputs", t)
-            if b.scale is not None:
-                b.from_fmu()
+        if b.scale is not None:
+            b.from_fmu()
         return b.view
 
-    def do_step(self, t: float, h: float, inputs: Binding, input_fn: Callable | None) -> None:
-        """Advance from ``t`` to ``t + h``. Inputs are in ``inputs.view`` (held over the step);
-        for model exchange ``input_fn(t)`` may refresh them at the integrator's stage times."""
-        if self.interface == "cs":
-            self.set_inputs(inputs, t)
-            if self.fmi3:
-                st = self._do_step(self._c, t, h, True, *self._flag_refs)
+    def do_step(self, t: float, h: float, inputs: Binding, input_fn: Callable | None) -> float:
+        """Advance from ``t`` to ``t + h``; return the time reached (earlier than ``t + h`` only
+        when the FMU asked to stop: see :attr:`terminated`). Inputs are in ``inputs.view``
+        (held over the step); for model exchange ``input_fn(t, view)`` may refresh the
+        continuous ones at the integrator's stage times."""
+        if self.terminated is not None:
+            raise FMUError(f"FMU '{self.name}' ({self.path.name}): doStep at t={t:g} after the "
+                           f"FMU asked to stop at t={self.terminated[0]:g}")
+        if self._me is not None:
+            return self._me.step(t, h, inputs, input_fn)
+        b = inputs
+        if b.n:  # set_inputs inlined: the co-simulation hot path
+            if b.groups:
+                self._set_groups(b, b.groups, t)
             else:
-                st = self._do_step(self._c, t, h, 1)
-            self._check(st, "doStep", t)
-            return
-        if self.solver == "rk4":
-            self._rk4(t, h, inputs, input_fn)
+                if b.scale is not None:
+                    b.to_fmu()
+                st = (self._set(self._c, b.vr, b.n, b.buf, b.n) if self.fmi3 else
+                      self._set(self._c, b.vr, b.n, b.buf))
+                if st > 1:
+                    self._check(st, "set inputs", t)
+        if self.fmi3:
+            st = self._do_step(self._c, t, h, True, *self._flag_refs)
+            if self._terminate_flag.value or self._early_flag.value:
+                return self._fmi3_stopped(st, t, h)
         else:
-            self._adaptive(t, h, inputs, input_fn)
-        self._finish_me_step(t + h, inputs, input_fn)
+            st = self._do_step(self._c, t, h, 1)
+            if st == 2 and self._fmi2_terminated():
+                t_end = self._fmi2_last_time(t)
+                self.terminated = (t_end, self._reason("fmi2Terminated"))
+                return t_end
+        if st > 1:
+            self._check(st, "doStep", t)
+        return t + h
+
+    def _fmi3_stopped(self, st: int, t: float, h: float) -> float:
+        """FMI 3 doStep with terminateSimulation or earlyReturn set."""
+        if self._terminate_flag.value and st <= 2:
+            last = self._flags[3].value  # the FMU's time when doStep returned
+            t_end = last if t <= last <= t + h else t + h
+            self.terminated = (t_end, self._reason("terminateSimulation"))
+            return t_end
+        self._check(st, "doStep", t)
+        raise FMUError(f"FMU '{self.name}' ({self.path.name}): doStep returned early at "
+                       f"t={self._flags[3].value:g} (early return was not allowed)")
+
+    def _reason(self, what: str) -> str:
+        """``terminateSimulation`` / ``fmi2Terminated`` and the FMU's last log message."""
+        return f"{what}: {self.messages[-1]}" if self.messages else what
+
+    def _fmi2_terminated(self) -> bool:
+        flag = ctypes.c_int(0)
+        st = self._raw["fmi2GetBooleanStatus"](self._c, 3, ctypes.byref(flag))  # fmi2Terminated
+        return st <= 1 and bool(flag.value)
+
+    def _fmi2_last_time(self, t: float) -> float:
+        value = ctypes.c_double(t)
+        st = self._raw["fmi2GetRealStatus"](self._c, 2, ctypes.byref(value))
+        return value.value if st <= 1 else t
 
     # -- model exchange -----------------------------------------------------------------------
-    def _deriv(self, t: float, x: np.ndarray, inputs: Binding, input_fn) -> np.ndarray:
-        self._check(self._set_time(self._c, t), "setTime", t)
-        if input_fn is not None:
-            input_fn(t, inputs.view)
-        self.set_inputs(inputs, t)
-        if self.nx:
-            self.xv[:] = x
-            self._check(self._set_states(self._c, self._x, self.nx), "setContinuousStates", t)
-            self._check(self._get_der(self._c, self._dx, self.nx), "getDerivatives", t)
-        return self.dxv.copy()
+    @property
+    def solver_used(self) -> str:
+        """``rk4``/``adaptive`` (no events) or ``cvode`` (event-aware); after instantiate."""
+        return self._me.solver_name if self._me is not None else self.solver
+
+    @property
+    def event_times(self) -> list[float]:
+        """Model exchange: times of the events handled since initialization."""
+        return self._me.event_times if self._me is not None else []
 
     def states(self) -> np.ndarray:
-        if self.nx:
-            self._check(self._get_states(self._c, self._x, self.nx), "getContinuousStates", 0.0)
-        return self.xv.copy()
-
-    def _rk4(self, t: float, h: float, inputs: Binding, input_fn) -> None:
-        x = self.states()
-        n = self.substeps
-        dt = h / n
-        for i in range(n):
-            ti = t + i * dt
-            k1 = self._deriv(ti, x, inputs, input_fn)
-            k2 = self._deriv(ti + dt / 2, x + dt / 2 * k1, inputs, input_fn)
-            k3 = self._deriv(ti + dt / 2, x + dt / 2 * k2, inputs, input_fn)
-            k4 = self._deriv(ti + dt, x + dt * k3, inputs, input_fn)
-            x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        self._x_end = x
-
-    def _adaptive(self, t: float, h: float, inputs: Binding, input_fn) -> None:
-        from scipy.integrate import solve_ivp
-
-        x0 = self.states()
-        if not self.nx:
-            self._x_end = x0
-            return
-        sol = solve_ivp(lambda tt, xx: self._deriv(tt, xx, inputs, input_fn), (t, t + h), x0,
-                        method="DOP853", rtol=self.rtol, atol=self.rtol * 1e-3)
-        if not sol.success:
-            raise FMUError(f"FMU '{self.name}': adaptive solver failed at t={t:g} ({sol.message})")
-        self._x_end = sol.y[:, -1]
-
-    def _finish_me_step(self, t: float, inputs: Binding, input_fn) -> None:
-        self._check(self._set_time(self._c, t), "setTime", t)
-        if input_fn is not None:
-            input_fn(t, inputs.view)
-        self.set_inputs(inputs, t)
-        if self.nx:
-            self.xv[:] = self._x_end
-            self._check(self._set_states(self._c, self._x, self.nx), "setContinuousStates", t)
-        st = self._completed(self._c, True if self.fmi3 else 1, *self._cflag_refs)
-        self._check(st, "completedIntegratorStep", t)
-        if self._cflags[0].value:
-            self._check(self._raw[("fmi3" if self.fmi3 else "fmi2") + "EnterEventMode"](self._c),
-                        "enterEventMode", t)
-            self._event_iteration()
-            self._fmu.enterContinuousTimeMode()
+        return self._me.states()
 
     # -- end ----------------------------------------------------------------------------------
     def reset(self) -> None:
@@ -474,13 +473,20 @@ class FMUAdapter:
 
     def close(self) -> None:
         fmu, self._fmu = self._fmu, None
-        if fmu is None:
-            return
-        try:
-            fmu.terminate()
-        except Exception:  # noqa: BLE001 - terminate after an error may fail; free anyway
-            pass
-        try:
-            fmu.freeInstance()
-        except Exception:  # noqa: BLE001
-            pass
+        self._me = None
+        if fmu is not None:
+            try:
+                fmu.terminate()
+            except Exception:  # noqa: BLE001 - terminate after an error may fail; free anyway
+                pass
+            try:
+                fmu.freeInstance()
+            except Exception:  # noqa: BLE001
+                pass
+        if self._own_unzip is not None:
+            d, self._own_unzip = self._own_unzip, None
+            try:
+                fmu.freeLibrary() if fmu is not None else None
+            except Exception:  # noqa: BLE001
+                pass
+            shutil.rmtree(d, ignore_errors=True)

@@ -1,14 +1,24 @@
-"""The master algorithm: builds the FMU network of a scenario and steps it.
+"""The master algorithm: builds the FMU network of a system and steps it.
 
-Time is an integer count of base steps: ``t = t0 + k*h``, never accumulated. Each FMU runs at
-an integer multiple ``period`` of ``h``; FMUs are stepped Gauss-Seidel in dependency order.
-Signals live in one flat array, the *bus*: every FMU output and every source has a slot, and
-each FMU input reads a slot. Sources (controls, noise) are pre-sampled for the whole run from
-the master's seeded streams; closed-loop sources (waypoints) are evaluated per step.
+The master's input is a :class:`~uwcosim.master.system.System` (FMUs, connections, sources,
+sensors, time grid); a loaded scenario is converted to one. Time is an integer count of base
+steps: ``t = t0 + k*h``, never accumulated. Each FMU runs at an integer multiple ``period`` of
+``h``; FMUs are stepped Gauss-Seidel in dependency order. Signals live in one flat float64
+array, the *bus*: every FMU output and every source has a slot, and each FMU input reads a slot.
+Integer and Boolean values travel on the bus as float64 (exact up to 2**53); String outputs
+have a slot (NaN) and their text in :attr:`Master.text`. Sources (controls, noise) are
+pre-sampled for the whole run from the master's seeded streams; closed-loop sources
+(waypoints) are evaluated per step.
+
+An FMU that asks to stop (FMI 2 ``fmi2Terminated``, FMI 3 ``terminateSimulation``) ends the run:
+:attr:`Master.terminated` holds who, when and why, and :meth:`Master.run_until` returns (or,
+with ``stop_on_terminate = "error"``, :class:`~uwcosim.errors.FMUError` is raised).
+
+The master owns the folder the FMU archives are unzipped to; :meth:`Master.close` deletes it.
 
 Step-by-step API::
 
-    m = Master(loaded_scenario, seed=3)
+    m = Master(system_or_loaded_scenario, seed=3)
     m.hooks.append(lambda m: print(m.t, m.signal("vehicle.x")))
     m.initialize()
     m.run_until(100.0)       # or m.step() repeatedly
@@ -17,27 +27,40 @@ Step-by-step API::
 
 from __future__ import annotations
 
+import shutil
+import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from multiprocessing import util as mp_util
 from pathlib import Path
 
 import numpy as np
 
 from uwcosim.errors import FMUError, ScenarioError
+from uwcosim.master import vartypes
 from uwcosim.master.adapter import Binding, FMUAdapter
 from uwcosim.master.graph import stepping_order
 from uwcosim.master.proxy import ProxyAdapter
 from uwcosim.master.sources import (
+    Sensor,
+    StageInputs,
     TableControl,
     WaypointHeading,
-    gaussian,
-    loss_mask,
-    stream,
-    white_noise,
+    build_sensors,
+    control_problem,
+    sample_sources,
 )
-from uwcosim.master.varmap import ROLES, load_entries
-from uwcosim.scenario.load import LoadedScenario
+from uwcosim.master.system import System, Termination, from_scenario
+from uwcosim.master.varmap import (
+    ROLES,
+    connection_affine,
+    load_entries,
+    noise_free_sources,
+)
+
+#: native values kept exactly (not only as float64 on the bus) for logging
+_EXACT_DTYPES = ("int64", "uint64", "object")
 
 
 @dataclass
@@ -50,6 +73,12 @@ class _Node:
     out_slots: np.ndarray
     input_fn: Callable | None = None
     time_s: float = 0.0
+    #: String inputs: (member index, bus slot of the String source)
+    str_inputs: list[tuple[int, int]] = field(default_factory=list)
+    #: outputs kept exactly (String, Int64, UInt64): (member index, bus slot)
+    exact_outputs: list[tuple[int, int]] = field(default_factory=list)
+    #: indices of the numeric outputs when some are Strings (None: all numeric)
+    numeric: np.ndarray | None = None
     #: per-input ``(factor, offset)`` of connections with a linear transformation, or None
     in_affine: tuple[np.ndarray, np.ndarray] | None = None
 
@@ -61,52 +90,39 @@ class _Node:
             self.inputs.view += self.in_affine[1]
 
 
-@dataclass
-class Sensor:
-    """A group of FMU outputs measured together, with its sampling and loss."""
-
-    name: str
-    outputs: list[str]
-    slots: np.ndarray
-    period: int
-    received: np.ndarray  # [n_steps + 1] bool: sampled and not lost at step k
-    sampled: np.ndarray = field(default=None)
-
-
-class StageInputs:
-    """Refreshes an ME FMU's table-control inputs at the integrator's stage times (picklable,
-    so that an FMU in a worker process can take it along)."""
-
-    def __init__(self, pairs: list[tuple[int, TableControl]]) -> None:
-        self.pairs = pairs
-
-    def __call__(self, t: float, view: np.ndarray) -> None:
-        for j, ctl in self.pairs:
-            view[j] = ctl.value(t)
+def _remove_tree(path: str) -> None:
+    shutil.rmtree(path, ignore_errors=True)
 
 
 class Master:
-    """Co-simulation of one scenario with one seed."""
+    """Co-simulation of one system (or loaded scenario) with one seed."""
 
-    def __init__(self, loaded: LoadedScenario, seed: int | None = None,
-                 workdir: Path | None = None) -> None:
-        self.loaded = loaded
-        spec = loaded.spec
-        self.spec = spec
-        self.seed = spec.run.seed if seed is None else int(seed)
-        self.h = spec.run.step
-        self.t0 = spec.run.start_time
-        n = spec.run.duration / self.h
+    def __init__(self, system, seed: int | None = None, workdir: Path | None = None) -> None:
+        if isinstance(system, System):
+            self.loaded, self.spec = None, None
+        else:  # a LoadedScenario: estimators and the logger read its spec
+            self.loaded, self.spec = system, system.spec
+            system = from_scenario(system)
+        self.system = system
+        self.seed = system.seed if seed is None else int(seed)
+        self.h = float(system.step)
+        self.t0 = float(system.start_time)
+        n = system.duration / self.h
         self.n_steps = int(round(n))
         if abs(n - self.n_steps) > 1e-9 * max(1.0, n):
-            raise ScenarioError(f"{loaded.path}: key 'run.duration': must be a whole number of "
-                                f"steps of {self.h:g} s (got {spec.run.duration:g})")
+            raise ScenarioError(f"{self._where('run.duration')}: must be a whole number of "
+                                f"steps of {self.h:g} s (got {system.duration:g})")
         self.k = 0
         self.hooks: list[Callable[[Master], None]] = []
         self.workdir = workdir
         self.master_time_s = 0.0
+        self.terminated: Termination | None = None
         self._initialized = False
         self.adapters: dict[str, FMUAdapter] = {}
+        #: the unzipped FMU archives, deleted by close() (or at process exit)
+        self.unzip_root = tempfile.mkdtemp(prefix="uwcosim_fmu_")
+        self._cleanup = mp_util.Finalize(self, _remove_tree, args=(self.unzip_root,),
+                                         exitpriority=0)
         try:
             self._build()
         except BaseException:
@@ -119,91 +135,129 @@ class Master:
         return self.t0 + self.k * self.h
 
     def _where(self, key: str) -> str:
-        return f"{self.loaded.path}: key '{key}'"
+        return f"{self.system.where}: key '{key}'"
 
     def _build(self) -> None:
-        spec = self.spec
-        for name, f in spec.fmus.items():
+        system = self.system
+        for name, f in system.fmus.items():
             self.adapters[name] = self._open(name, f)
         self.slots: dict[str, int] = {}
+        self.out_vars: dict[str, object] = {}  # FMU output signal -> its model variable
         for name, ad in self.adapters.items():
-            for out in ad.real_outputs():
+            for out in ad.outputs():
                 self.slots[f"{name}.{out}"] = len(self.slots)
+                self.out_vars[f"{name}.{out}"] = ad.variables[out]
         drivers: dict[str, str] = {}  # input signal -> source name (for error messages)
         self.controls: dict[str, object] = {}
-        for cname, c in spec.controls.items():
+        for cname, c in system.controls.items():
             src = TableControl(c) if c.table is not None else WaypointHeading(c)
             if isinstance(src, WaypointHeading):
-                src.pos_slots = [self._slot(p, f"controls.{cname}.position") for p in c.position]
+                src.pos_slots = [self._numeric_slot(p, f"controls.{cname}.position")
+                                 for p in c.position]
             self.controls[cname] = src
             self.slots[f"controls.{cname}"] = len(self.slots)
-            self._check_input(c.target, f"controls.{cname}.target", drivers, f"controls.{cname}")
-        self.noise_sources = []
+            key = f"controls.{cname}.target"
+            self._check_input(c.target, key, drivers, f"controls.{cname}")
+            problem = control_problem(c, self._variable(c.target, key))
+            if problem:
+                raise ScenarioError(f"{self._where(key)}: {c.target!r} {problem}")
         #: noise sources none of whose targets the FMU has (a third-party vehicle without
         #: process-noise inputs): the truth runs without them, the filters' model keeps them
-        self.noise_free: dict[str, str] = {}
-        for nname, nz in spec.noise.items():
-            absent = self._absent_inputs(nz.targets)
-            if len(absent) == len(nz.targets):
-                self.noise_free[nname] = absent[0].partition(".")[0]
+        self.noise_free = noise_free_sources(system, self.adapters)
+        for nname, nz in system.noise.items():
+            if nname in self.noise_free:
                 continue
             for i, tgt in enumerate(nz.targets):
                 key = f"noise.{nname}.{i}"
                 self.slots[key] = len(self.slots)
-                self._check_input(tgt, f"noise.{nname}.targets", drivers, key)
-        for sname, s in spec.sensors.items():
+                self._check_input(tgt, f"noise.{nname}.targets", drivers, key, float_only=True)
+        for sname, s in system.sensors.items():
             for i, tgt in enumerate(s.noise_inputs):
                 key = f"sensornoise.{sname}.{i}"
                 self.slots[key] = len(self.slots)
-                self._check_input(tgt, f"sensors.{sname}.noise_inputs", drivers, key)
-        transforms: dict[str, tuple[float, float]] = {}  # input -> (factor, offset)
-        for i, conn in enumerate(spec.connections):
+                self._check_input(tgt, f"sensors.{sname}.noise_inputs", drivers, key,
+                                  float_only=True)
+        self.transforms: dict[str, tuple[float, float]] = {}  # input -> (factor, offset)
+        for i, conn in enumerate(system.connections):
             src, dst = conn[0], conn[1]
-            self._slot(src, f"connections[{i}]")
-            self._check_input(dst, f"connections[{i}]", drivers, src)
+            key = f"connections[{i}]"
             if len(conn) > 2:
-                transforms[dst] = (conn[2].factor, conn[2].offset)
+                self.transforms[dst] = connection_affine(conn[2], f"{self._where(key)}")
+            self._slot(src, key)
+            self._check_input(dst, key, drivers, src)
+            dvar = self._variable(dst, key)
+            svar = self.out_vars.get(src)  # None: a source of the master (a float)
+            if svar is None:
+                problem = None if vartypes.kind(dvar) == "float" else "expected a Real input"
+            else:
+                problem = vartypes.connection_problem(svar, dvar)
+            if problem:
+                if problem.startswith("cannot connect") and " (" in problem:
+                    problem = problem.split(" (", 1)[1].rstrip(")")  # the names are ours
+                raise ScenarioError(
+                    f"{self._where(key)}: cannot connect {src!r} "
+                    f"({'Float64' if svar is None else svar.type}) to {dst!r} ({dvar.type}): "
+                    f"{problem}")
         self.drivers = drivers
         self.bus = np.zeros(len(self.slots))
+        #: text of the String signals, by bus slot
+        self.text: dict[int, str] = {}
+        #: exact native values of the String/Int64/UInt64 outputs, by bus slot
+        self.native: dict[int, object] = {}
         deps = {n: a.feedthrough() for n, a in self.adapters.items()}
-        order = stepping_order(list(self.adapters), [(c[0], c[1]) for c in spec.connections],
+        order = stepping_order(list(self.adapters), [(c[0], c[1]) for c in system.connections],
                                deps)
-        self.nodes: list[_Node] = []
-        for name in order:
-            ad = self.adapters[name]
-            ins = sorted(k.split(".", 1)[1] for k in drivers if k.split(".", 1)[0] == name)
-            outs = [k.split(".", 1)[1] for k in self.slots
-                    if k.split(".", 1)[0] == name and k.split(".", 1)[1] in ad.variables]
-            node = _Node(
-                adapter=ad, period=spec.fmus[name].period,
-                inputs=ad.bind(ins),
-                in_slots=np.array([self.slots[drivers[f"{name}.{i}"]] for i in ins],
-                                  dtype=np.intp),
-                outputs=ad.bind(outs),
-                out_slots=np.array([self.slots[f"{name}.{o}"] for o in outs], dtype=np.intp),
-            )
-            if any(f"{name}.{i}" in transforms for i in ins):
-                fo = np.array([transforms.get(f"{name}.{i}", (1.0, 0.0)) for i in ins])
-                node.in_affine = (fo[:, 0].copy(), fo[:, 1].copy())
-            if ad.interface == "me":
-                node.input_fn = self._continuous_inputs(node, ins, name)
-            self.nodes.append(node)
+        self.nodes: list[_Node] = [self._node(name) for name in order]
         self._sample_sources()
         self.sensors = self._build_sensors()
 
+    def _node(self, name: str) -> _Node:
+        ad = self.adapters[name]
+        drivers = self.drivers
+        ins = sorted(k.split(".", 1)[1] for k in drivers if k.split(".", 1)[0] == name)
+        outs = [k.split(".", 1)[1] for k in self.out_vars if k.split(".", 1)[0] == name]
+        node = _Node(
+            adapter=ad, period=self.system.fmus[name].period,
+            inputs=ad.bind(ins),
+            in_slots=np.array([self.slots[drivers[f"{name}.{i}"]] for i in ins], dtype=np.intp),
+            outputs=ad.bind(outs),
+            out_slots=np.array([self.slots[f"{name}.{o}"] for o in outs], dtype=np.intp),
+        )
+        node.str_inputs = [(j, self.slots[drivers[f"{name}.{i}"]]) for j, i in enumerate(ins)
+                           if vartypes.kind(ad.variables[i]) == "string"]
+        exact = [j for j, o in enumerate(outs)
+                 if np.dtype(vartypes.numpy_dtype(ad.variables[o])).name in _EXACT_DTYPES]
+        node.exact_outputs = [(j, int(node.out_slots[j])) for j in exact]
+        strings = {j for j, o in enumerate(outs) if vartypes.kind(ad.variables[o]) == "string"}
+        if strings:
+            node.numeric = np.array([j for j in range(len(outs)) if j not in strings],
+                                    dtype=np.intp)
+        if any(f"{name}.{i}" in self.transforms for i in ins):
+            fo = np.array([self.transforms.get(f"{name}.{i}", (1.0, 0.0)) for i in ins])
+            node.in_affine = (fo[:, 0].copy(), fo[:, 1].copy())
+        if ad.interface == "me":
+            node.input_fn = self._continuous_inputs(ins, name)
+        return node
+
     def _open(self, name: str, f) -> FMUAdapter | ProxyAdapter:
         """The adapter of FMU ``name``: in this process, or in a worker when ``timeout_s``."""
-        path = self.loaded.resolve(f.path)
+        path = self.system.resolve(f.path)
+        unzip = str(Path(self.unzip_root) / name)
         if f.timeout_s is not None:
-            ad = ProxyAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol, f.timeout_s)
+            ad = ProxyAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol, f.timeout_s,
+                              unzip_dir=unzip)
         else:
-            ad = FMUAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol)
+            ad = FMUAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol,
+                            unzip_dir=unzip)
+        self.adapters[name] = ad  # closed with the others if what follows is refused
         if f.map is not None:
-            self.adapters[name] = ad  # closed with the others if the map is refused
-            entries, where, prefix = load_entries(f.map, self.loaded.base_dir,
-                                                  str(self.loaded.path), f"fmus.{name}.map")
+            base = self.system.base_dir or Path.cwd()
+            entries, where, prefix = load_entries(f.map, Path(base), self.system.where,
+                                                  f"fmus.{name}.map")
             role = f.role or (name if name in ROLES else None)
             ad.use_map(entries, role, where, prefix)
+        # start values and parameters: every type, checked against the model description now
+        ad.check_values({**f.parameters, **f.start}, f"{self.system.where}: key 'fmus.{name}'")
         return ad
 
     def _variable(self, signal: str, key: str):
@@ -217,41 +271,21 @@ class Master:
             raise ScenarioError(self._no_variable(fmu, var, key))
         return v
 
-    def _absent_inputs(self, signals: list[str]) -> list[str]:
-        """The process-noise roles (``w_*`` inputs of the vehicle roles) among ``signals`` that
-        their FMU, a vehicle with no input besides its roles, does not have. A typo, or a
-        vehicle with inputs it could take the noise on (unmapped), stays an error."""
-        out = []
-        for sig in signals:
-            fmu, _, var = sig.partition(".")
-            f = self.spec.fmus.get(fmu)
-            role = (f.role or (fmu if fmu in ROLES else None)) if f is not None else None
-            roles = ROLES.get(role, {}) if role else {}
-            spec = roles.get(var)
-            if spec is None or not var.startswith("w_") or spec[0] != "input" or spec[2]:
-                continue
-            variables = self.adapters[fmu].variables
-            other_inputs = [n for n, v in variables.items()
-                            if v.causality == "input" and n not in roles]
-            if var not in variables and not other_inputs:
-                out.append(sig)
-        return out
-
-    def noise_free_notes(self) -> list[str]:
-        """One line per noise source the truth ran without (see :attr:`noise_free`)."""
-        q = ("model.q_psd" if self.spec.model is not None and self.spec.model.q_psd is not None
-             else "model.q_psd, which defaults to these PSDs")
-        return [f"the truth ran noise-free: FMU {fmu!r} has no inputs "
-                f"{', '.join(t.partition('.')[2] for t in self.spec.noise[n].targets)} for "
-                f"noise {n!r}; the filters' process noise is {q}"
-                for n, fmu in self.noise_free.items()]
-
     def _slot(self, signal: str, key: str) -> int:
         if signal not in self.slots:
             v = self._variable(signal, key)
-            raise ScenarioError(f"{self._where(key)}: {signal!r} is not a Real output "
+            what = "an output" if v.causality != "output" else "an output of a supported type"
+            raise ScenarioError(f"{self._where(key)}: {signal!r} is not {what} "
                                 f"(causality {v.causality!r}, type {v.type})")
         return self.slots[signal]
+
+    def _numeric_slot(self, signal: str, key: str) -> int:
+        slot = self._slot(signal, key)
+        v = self.out_vars.get(signal)
+        if v is not None and vartypes.kind(v) == "string":
+            raise ScenarioError(f"{self._where(key)}: {signal!r} is a String output; "
+                                f"expected a numeric one")
+        return slot
 
     def _no_variable(self, fmu: str, var: str, key: str) -> str:
         vmap = self.adapters[fmu].varmap
@@ -261,104 +295,125 @@ class Master:
                     f"map {var!r} there)")
         return f"{self._where(key)}: FMU {fmu!r} has no variable {var!r}{hint}"
 
-    def _check_input(self, signal: str, key: str, drivers: dict, source: str) -> None:
+    def _check_input(self, signal: str, key: str, drivers: dict, source: str,
+                     float_only: bool = False) -> None:
         v = self._variable(signal, key)
         if v.causality != "input":
             raise ScenarioError(f"{self._where(key)}: {signal!r} has causality "
                                 f"{v.causality!r}, expected 'input'")
+        if float_only and vartypes.kind(v) != "float":
+            raise ScenarioError(f"{self._where(key)}: {signal!r} is of type {v.type}; noise "
+                                f"drives only Real/Float inputs")
         if signal in drivers:
             raise ScenarioError(f"{self._where(key)}: input {signal!r} is already driven by "
                                 f"{drivers[signal]!r}")
         drivers[signal] = source
 
-    def _continuous_inputs(self, node: _Node, ins: list[str], name: str) -> Callable | None:
-        """For ME FMUs: table controls are evaluated at the integrator's stage times."""
+    def _continuous_inputs(self, ins: list[str], name: str) -> Callable | None:
+        """For ME FMUs: table controls of Real inputs are evaluated at the integrator's stage
+        times (discrete inputs are set at communication points only)."""
         pairs = []
+        ad = self.adapters[name]
         for j, i in enumerate(ins):
             src = self.drivers[f"{name}.{i}"]
-            if src.startswith("controls."):
+            if src.startswith("controls.") and vartypes.is_continuous_input(ad.variables[i]):
                 ctl = self.controls[src.split(".", 1)[1]]
                 if isinstance(ctl, TableControl):
                     pairs.append((j, ctl))
         return StageInputs(pairs) if pairs else None
 
     def _sample_sources(self) -> None:
-        n = self.n_steps + 1
-        times = self.t0 + self.h * np.arange(n)
-        cols, slots = [], []
-        for cname, ctl in self.controls.items():
-            if isinstance(ctl, TableControl):
-                cols.append(ctl.samples(times)[:, None])
-                slots.append([self.slots[f"controls.{cname}"]])
-        for nname, nz in self.spec.noise.items():
-            if nname in self.noise_free:
-                continue
-            cols.append(white_noise(stream(self.seed, f"noise:{nname}"), n, nz.psd, self.h))
-            slots.append([self.slots[f"noise.{nname}.{i}"] for i in range(len(nz.targets))])
-        for sname, s in self.spec.sensors.items():
-            if s.noise_inputs:
-                cols.append(gaussian(stream(self.seed, f"sensor-noise:{sname}"), n, s.sigma))
-                slots.append([self.slots[f"sensornoise.{sname}.{i}"]
-                              for i in range(len(s.noise_inputs))])
-        self.source_table = np.hstack(cols) if cols else np.zeros((n, 0))
-        self.source_slots = np.array([s for group in slots for s in group], dtype=np.intp)
-        self.dynamic = [(self.slots[f"controls.{c}"], ctl) for c, ctl in self.controls.items()
-                        if not isinstance(ctl, TableControl)]
+        self.source_table, self.source_slots, self.dynamic = sample_sources(
+            self.system, self.controls, self.slots, self.seed, self.n_steps + 1,
+            skip=self.noise_free)
 
     def _build_sensors(self) -> dict[str, Sensor]:
-        out = {}
-        n = self.n_steps + 1
-        for sname, s in self.spec.sensors.items():
-            slots = np.array([self._slot(o, f"sensors.{sname}.outputs") for o in s.outputs],
-                             dtype=np.intp)
-            k = np.arange(n)
-            sampled = (k % s.period == 0) & (k > 0)
-            received = sampled & loss_mask(stream(self.seed, f"loss:{sname}"), n, s.loss)
-            out[sname] = Sensor(sname, list(s.outputs), slots, s.period, received, sampled)
-        return out
+        slots = {sname: np.array([self._numeric_slot(o, f"sensors.{sname}.outputs")
+                                  for o in s.outputs], dtype=np.intp)
+                 for sname, s in self.system.sensors.items()}
+        return build_sensors(self.system, slots, self.seed, self.n_steps + 1)
 
     def reset(self, seed: int | None = None) -> None:
-        """Prepare another run of the same scenario (``seed`` or the scenario's): new noise,
+        """Prepare another run of the same system (``seed`` or the system's): new noise,
         losses and initial time; FMU instances are kept and reset by :meth:`initialize`."""
-        self.seed = self.spec.run.seed if seed is None else int(seed)
+        self.seed = self.system.seed if seed is None else int(seed)
         for ctl in self.controls.values():
             if isinstance(ctl, WaypointHeading):
                 ctl.reset()
         self._sample_sources()
         self.sensors = self._build_sensors()
         self.bus[:] = 0.0
+        self.text.clear()
+        self.native.clear()
         self.k = 0
         self.hooks = []
         self.master_time_s = 0.0
+        self.terminated = None
         for node in self.nodes:
             node.time_s = 0.0
         self._initialized = False
 
-    # -- running ----------------------------------------------------------------------------
+    # -- signals ----------------------------------------------------------------------------
     def signal(self, name: str) -> float:
         return float(self.bus[self.slots[name]])
 
     def signals(self, names: list[str]) -> np.ndarray:
         return self.bus[[self.slots[n] for n in names]]
 
+    def value(self, name: str):
+        """The current value of a signal as its own type (str, int, bool or float)."""
+        slot = self.slots[name]
+        var = self.out_vars.get(name)
+        if var is None:
+            return float(self.bus[slot])
+        if slot in self.native:
+            return self.native[slot]
+        kind = vartypes.kind(var)
+        x = self.bus[slot]
+        return int(x) if kind == "int" else bool(x) if kind == "bool" else float(x)
+
+    def signal_dtype(self, name: str) -> np.dtype:
+        """numpy dtype of a signal (float64 for sources; the FMI type for FMU outputs)."""
+        var = self.out_vars.get(name)
+        return np.dtype(np.float64) if var is None else np.dtype(vartypes.numpy_dtype(var))
+
+    # -- running ----------------------------------------------------------------------------
     def initialize(self, start_overrides: dict[str, dict] | None = None) -> None:
-        """Instantiate and initialize every FMU at ``t0`` and read the outputs at ``t0``."""
+        """Instantiate and initialize every FMU at ``t0`` and read the outputs at ``t0``.
+
+        FMUs are initialized in stepping order; each one's inputs (sources at ``t0`` and the
+        outputs of the FMUs before it) are set in initialization mode, with its start values,
+        so that its outputs at ``t0`` already see them (as ``fmpy.simulate_fmu`` does)."""
         t_stop = self.t0 + self.n_steps * self.h
-        for name, node in zip([n.adapter.name for n in self.nodes], self.nodes):
-            f = self.spec.fmus[name]
-            params = dict(f.parameters)
-            params.update((start_overrides or {}).get(name, {}))
-            try:
-                node.adapter.instantiate(params, dict(f.start), self.t0, t_stop)
-            except FMUError as exc:
-                raise FMUError(f"{exc} [scenario key 'fmus.{name}']") from None
         self.k = 0
+        self.terminated = None
         self._load_sources(0)
         for node in self.nodes:
+            name = node.adapter.name
+            f = self.system.fmus[name]
+            params = dict(f.parameters)
+            params.update((start_overrides or {}).get(name, {}))
+            self._set_text(node)
             node.gather(self.bus)
+            start = {**f.start, **self._input_values(node)}  # driven inputs: their driver
+            try:
+                node.adapter.instantiate(params, start, self.t0, t_stop)
+            except FMUError as exc:
+                raise FMUError(f"{exc} [{self._where(f'fmus.{name}')}]") from None
             node.adapter.set_inputs(node.inputs, self.t0)
             self._read(node, self.t0)
         self._initialized = True
+        for node in self.nodes:  # a request to stop in the initial event iteration
+            if node.adapter.terminated is not None:
+                self._stop(node.adapter)
+                break
+
+    def _stop(self, ad) -> None:
+        """Record ``ad``'s request to stop; an error with ``stop_on_terminate = "error"``."""
+        t, reason = ad.terminated
+        self.terminated = Termination(ad.name, float(t), str(reason))
+        if self.system.stop_on_terminate == "error":
+            raise FMUError(f"{self.terminated.message()} (run.stop_on_terminate = \"error\")")
 
     def _load_sources(self, k: int) -> None:
         self.bus[self.source_slots] = self.source_table[k]
@@ -366,18 +421,51 @@ class Master:
             x, y = self.bus[ctl.pos_slots]
             self.bus[slot] = ctl.value_at(x, y)
 
+    def _input_values(self, node: _Node) -> dict:
+        """The node's driven inputs as native values (for initialization mode)."""
+        out = {}
+        for j, name in enumerate(node.inputs.names):
+            var = node.adapter.variables[name]
+            if node.adapter.varmap.aliases.get(name) is not None:
+                continue  # a role with a unit conversion: set by set_inputs after initialization
+            kind = vartypes.kind(var)
+            x = node.inputs.view[j]
+            out[name] = (node.inputs.text.get(j, "") if kind == "string" else
+                         int(round(x)) if kind == "int" else bool(x) if kind == "bool"
+                         else float(x))
+        return out
+
+    def _set_text(self, node: _Node) -> None:
+        for j, slot in node.str_inputs:
+            node.inputs.text[j] = self.text.get(slot, "")
+
     def _read(self, node: _Node, t: float) -> None:
         out = node.adapter.get_outputs(node.outputs, t)
-        if not np.all(np.isfinite(out)):
-            bad = [n for n, v in zip(node.outputs.names, out) if not np.isfinite(v)]
+        num = out if node.numeric is None else out[node.numeric]
+        if not np.all(np.isfinite(num)):
+            names = node.outputs.names if node.numeric is None else \
+                [node.outputs.names[j] for j in node.numeric]
+            bad = [n for n, v in zip(names, num) if not np.isfinite(v)]
             raise FMUError(f"FMU '{node.adapter.name}' returned a non-finite value for "
                            f"{', '.join(bad)} at t={t:g}")
         self.bus[node.out_slots] = out
+        if node.exact_outputs:
+            values = node.outputs.native()
+            for j, slot in node.exact_outputs:
+                self.native[slot] = values[j]
+                if isinstance(values[j], str):
+                    self.text[slot] = values[j]
 
     def step(self) -> None:
-        """Advance one base step: ``t_k -> t_{k+1}``, then call the hooks."""
+        """Advance one base step: ``t_k -> t_{k+1}``, then call the hooks.
+
+        When an FMU asks to stop inside the step, :attr:`terminated` is set: if it reached the
+        end of the step the others complete it and the hooks are called; otherwise the run
+        stops at ``t_k`` (the bus then holds that FMU's outputs at its termination time)."""
         if not self._initialized:
             raise ScenarioError("Master.step() called before initialize()")
+        if self.terminated is not None:
+            raise ScenarioError(f"run already ended: {self.terminated.message()}")
         if self.k >= self.n_steps:
             raise ScenarioError(f"run already at its end t={self.t:g} (duration reached)")
         c0 = time.perf_counter()
@@ -390,22 +478,36 @@ class Master:
             if (k + 1) % p:
                 continue
             a = time.perf_counter()
+            if node.str_inputs:
+                self._set_text(node)
             node.gather(self.bus)
-            node.adapter.do_step(self.t0 + (k + 1 - p) * self.h, p * self.h, node.inputs,
-                                 node.input_fn)
-            self._read(node, t_next)
+            ad = node.adapter
+            # the step is the difference of two grid times (as fmpy's loop does), so the FMU
+            # lands on t_{k+1} without accumulating rounding
+            t_start = self.t0 + (k + 1 - p) * self.h
+            t_reached = ad.do_step(t_start, t_next - t_start, node.inputs, node.input_fn)
+            stop = ad.terminated
+            if stop is not None:
+                t_reached = stop[0]
+            self._read(node, t_next if t_reached is None else t_reached)
             dt = time.perf_counter() - a
             node.time_s += dt
             fmu_time += dt
+            if stop is not None and self.terminated is None:
+                self._stop(ad)
+                if stop[0] < t_next - 1e-9 * self.h:  # stopped inside the step: not on the grid
+                    self.master_time_s += time.perf_counter() - c0 - fmu_time
+                    return
         self.k = k + 1
         self.master_time_s += time.perf_counter() - c0 - fmu_time
         for hook in self.hooks:
             hook(self)
 
     def run_until(self, t: float) -> None:
-        """Step until ``t`` (rounded to the base grid) or the end of the run."""
+        """Step until ``t`` (rounded to the base grid), the end of the run or an FMU's request
+        to stop (:attr:`terminated`)."""
         k_end = min(self.n_steps, int(round((t - self.t0) / self.h)))
-        while self.k < k_end:
+        while self.k < k_end and self.terminated is None:
             self.step()
 
     def timing(self) -> dict[str, float]:
@@ -418,9 +520,24 @@ class Master:
         return {n: {r: [a.var.name, a.scale, a.offset] for r, a in ad.varmap.aliases.items()}
                 for n, ad in self.adapters.items() if ad.varmap.aliases}
 
+    def me_solvers(self) -> dict[str, str]:
+        """``{fmu: "rk4" | "adaptive" | "cvode"}``: the integrator of each ME FMU (the last one
+        used; kept after :meth:`close`)."""
+        solvers = getattr(self, "_solvers", {})
+        for name, ad in self.adapters.items():
+            if ad.interface == "me" and getattr(ad, "_fmu", True) is not None:
+                solvers[name] = ad.solver_used
+        self._solvers = solvers
+        return dict(solvers)
+
     def fmu_hashes(self) -> dict[str, str]:
         return {n: a.sha256 for n, a in self.adapters.items()}
 
     def close(self) -> None:
-        for ad in self.adapters.values():
-            ad.close()
+        """Free every FMU instance and delete the unzipped archives (idempotent)."""
+        self.me_solvers()  # remembered for the summary
+        try:
+            for ad in self.adapters.values():
+                ad.close()
+        finally:
+            self._cleanup()

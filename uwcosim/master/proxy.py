@@ -43,7 +43,8 @@ class ProxyAdapter:
     """An :class:`FMUAdapter` look-alike whose FMU runs in a worker process."""
 
     def __init__(self, name: str, path: Path, interface: str = "cs", solver: str = "rk4",
-                 substeps: int = 1, rtol: float = 1e-8, timeout_s: float = 10.0) -> None:
+                 substeps: int = 1, rtol: float = 1e-8, timeout_s: float = 10.0,
+                 unzip_dir: str | Path | None = None) -> None:
         self.local = FMUAdapter(name, path, interface, solver, substeps, rtol)
         self.name, self.path, self.md = name, self.local.path, self.local.md
         self.sha256, self.fmi3 = self.local.sha256, self.local.fmi3
@@ -51,14 +52,17 @@ class ProxyAdapter:
         self.messages = self.local.messages
         self.timeout_s = float(timeout_s)
         self.time_s = 0.0
-        self._args = (name, str(self.local.path), interface, solver, substeps, rtol)
+        self._args = (name, str(self.local.path), interface, solver, substeps, rtol, None,
+                      None if unzip_dir is None else str(unzip_dir))
+        self.terminated: tuple[float, str] | None = None
+        self.solver_used = solver
         self._map: tuple | None = None
         self._bindings: list[Binding] = []
         self._ids: dict[int, int] = {}
         self._sent: list[int] = []  # bindings the worker knows
         self._fn = None
         self._outs: list[int] = []  # bindings read after each step: sent with the step answer
-        self._fresh: dict[int, bytes] = {}
+        self._fresh: dict[int, tuple] = {}
         self._proc: subprocess.Popen | None = None
         self._req = self._resp = None
         self._finalizer = None
@@ -83,13 +87,18 @@ class ProxyAdapter:
     def real_outputs(self) -> list[str]:
         return self.local.real_outputs()
 
+    def outputs(self) -> list[str]:
+        return self.local.outputs()
+
+    def check_values(self, values: dict, where: str = "") -> dict:
+        return self.local.check_values(values, where)
+
     def feedthrough(self) -> dict[str, set[str]]:
         return self.local.feedthrough()
 
     def bind(self, names) -> Binding:
-        for n in names:
-            self.local.variable(n)
-        b = Binding.plain(names)
+        typed = self.local.bind(names)  # checks the names and types; buffers unused
+        b = Binding.plain(names, typed.kinds, typed.types)
         self._ids[id(b)] = len(self._bindings)
         self._bindings.append(b)
         return b
@@ -160,13 +169,16 @@ class ProxyAdapter:
         if self._proc is None:
             self._start()
         self._sync_bindings(t0)
-        self._call("instantiate", t0, ("instantiate", parameters, start, t0, t_stop))
+        self.terminated = None
+        self.terminated, self.solver_used = self._call(
+            "instantiate", t0, ("instantiate", parameters, start, t0, t_stop))
 
     def set_inputs(self, b: Binding, t: float) -> None:
         self._fresh.clear()
         if b.n:
             self._sync_bindings(t)
-            self._call("set inputs", t, ("set", self._ids[id(b)], b.view.tobytes(), t))
+            self._call("set inputs", t, ("set", self._ids[id(b)], b.view.tobytes(), t,
+                                         dict(b.text)))
 
     def get_outputs(self, b: Binding, t: float) -> np.ndarray:
         if b.n:
@@ -177,20 +189,23 @@ class ProxyAdapter:
                 data = self._call("get outputs", t, ("get", i, t))
                 if i not in self._outs:
                     self._outs.append(i)
-            b.view[:] = np.frombuffer(data)
+            b.view[:] = np.frombuffer(data[0])
+            b.text.update(data[1])
         return b.view
 
-    def do_step(self, t: float, h: float, inputs: Binding, input_fn=None) -> None:
-        """One round trip: inputs in, doStep, and the outputs read after the last step out."""
+    def do_step(self, t: float, h: float, inputs: Binding, input_fn=None) -> float:
+        """One round trip: inputs in, doStep, and the outputs read after the last step out;
+        returns the time reached (see :attr:`FMUAdapter.terminated`)."""
         self._fresh.clear()
         self._sync_bindings(t)
         fn = None
         if input_fn is not self._fn:  # sent once (pickled): table controls for ME stages
             self._fn = fn = input_fn
-        values = self._call("doStep", t, ("step", t, h, self._ids[id(inputs)],
-                                          inputs.view.tobytes(), fn is not None, fn,
-                                          tuple(self._outs)))
+        values, reached, self.terminated = self._call(
+            "doStep", t, ("step", t, h, self._ids[id(inputs)], inputs.view.tobytes(),
+                          fn is not None, fn, tuple(self._outs), dict(inputs.text)))
         self._fresh = dict(zip(self._outs, values))
+        return reached
 
     def reset(self) -> None:
         if self._proc is not None:
@@ -227,20 +242,25 @@ def _serve(req: Connection, resp: Connection) -> None:
                 bindings.append(adapter.bind(msg[1]))
             elif op == "instantiate":
                 adapter.instantiate(*msg[1:])
+                out = (adapter.terminated, adapter.solver_used)
             elif op == "set":
                 b = bindings[msg[1]]
                 b.view[:] = np.frombuffer(msg[2])
+                b.text.update(msg[4])
                 adapter.set_inputs(b, msg[3])
             elif op == "get":
-                out = adapter.get_outputs(bindings[msg[1]], msg[2]).tobytes()
+                b = bindings[msg[1]]
+                out = (adapter.get_outputs(b, msg[2]).tobytes(), dict(b.text))
             elif op == "step":
-                _, t, h, i, values, new_fn, f, outs = msg
+                _, t, h, i, values, new_fn, f, outs, text = msg
                 if new_fn:
                     fn = f
                 b = bindings[i]
                 b.view[:] = np.frombuffer(values)
-                adapter.do_step(t, h, b, fn)
-                out = [adapter.get_outputs(bindings[j], t + h).tobytes() for j in outs]
+                b.text.update(text)
+                reached = adapter.do_step(t, h, b, fn)
+                out = ([(adapter.get_outputs(bindings[j], reached).tobytes(),
+                         dict(bindings[j].text)) for j in outs], reached, adapter.terminated)
             elif op == "reset":
                 adapter.reset()
             elif op == "close":

@@ -307,3 +307,63 @@ def missing_roles(vmap: VariableMap, role: str) -> list[str]:
             out.append(f"role {rname!r}: {v.name!r} has causality {v.causality!r}, "
                        f"expected {causality!r}")
     return out
+
+
+def _absent_noise_inputs(system, adapters: dict, signals: list[str]) -> list[str]:
+    """The process-noise roles (``w_*`` inputs of the vehicle roles) among ``signals`` that
+    their FMU, a vehicle with no input besides its roles, does not have. A typo, or a
+    vehicle with inputs it could take the noise on (unmapped), stays an error."""
+    out = []
+    for sig in signals:
+        fmu, _, var = sig.partition(".")
+        f = system.fmus.get(fmu)
+        role = (f.role or (fmu if fmu in ROLES else None)) if f is not None else None
+        roles = ROLES.get(role, {}) if role else {}
+        spec = roles.get(var)
+        if spec is None or not var.startswith("w_") or spec[0] != "input" or spec[2]:
+            continue
+        variables = adapters[fmu].variables
+        other_inputs = [n for n, v in variables.items()
+                        if v.causality == "input" and n not in roles]
+        if var not in variables and not other_inputs:
+            out.append(sig)
+    return out
+
+
+def noise_free_sources(system, adapters: dict) -> dict[str, str]:
+    """``{noise source: FMU}`` for the noise sources none of whose targets their FMU has (a
+    third-party vehicle without process-noise inputs): the truth runs without them."""
+    out = {}
+    for nname, nz in system.noise.items():
+        absent = _absent_noise_inputs(system, adapters, list(nz.targets))
+        if absent and len(absent) == len(nz.targets):
+            out[nname] = absent[0].partition(".")[0]
+    return out
+
+
+def noise_free_notes(system, noise_free: dict[str, str], q_psd_given: bool) -> list[str]:
+    """One line per noise source the truth ran without (see :func:`noise_free_sources`)."""
+    q = "model.q_psd" if q_psd_given else "model.q_psd, which defaults to these PSDs"
+    return [f"the truth ran noise-free: FMU {fmu!r} has no inputs "
+            f"{', '.join(t.partition('.')[2] for t in system.noise[n].targets)} for "
+            f"noise {n!r}; the filters' process noise is {q}"
+            for n, fmu in noise_free.items()]
+
+
+def connection_affine(transform, where: str) -> tuple[float, float]:
+    """``(factor, offset)`` of a connection's linear transformation: an object with ``factor``
+    and ``offset`` attributes (the scenario's), a dict with those keys or a pair."""
+    if isinstance(transform, dict):
+        factor, offset = transform.get("factor", 1.0), transform.get("offset", 0.0)
+    elif isinstance(transform, tuple | list):
+        factor, offset = transform
+    else:
+        factor, offset = getattr(transform, "factor", 1.0), getattr(transform, "offset", 0.0)
+    try:
+        factor, offset = float(factor), float(offset)
+    except (TypeError, ValueError):
+        raise ScenarioError(f"{where}: a connection transform needs numbers factor and offset "
+                            f"(got {transform!r})") from None
+    if not (math.isfinite(factor) and math.isfinite(offset)):
+        raise ScenarioError(f"{where}: a connection transform needs finite factor and offset")
+    return factor, offset

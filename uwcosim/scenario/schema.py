@@ -20,6 +20,8 @@ from pydantic import (
 )
 
 Scalar = float | int | bool | str
+#: a start value or parameter: any FMI scalar as TOML gives it, or an array (FMI 3 arrays)
+Value = Scalar | list[float | int | bool]
 PositiveFloat = Annotated[float, Field(gt=0)]
 PositiveInt = Annotated[int, Field(ge=1)]
 Probability = Annotated[float, Field(ge=0.0, le=1.0)]
@@ -34,6 +36,9 @@ class RunSpec(Strict):
     step: PositiveFloat
     start_time: float = 0.0
     seed: int = 0
+    #: an FMU's request to stop ends the run with status "terminated" (exit 0) or, with
+    #: "error", as a failure (exit 3)
+    stop_on_terminate: Literal["stop", "error"] = "stop"
 
 
 class FMUSpec(Strict):
@@ -43,8 +48,8 @@ class FMUSpec(Strict):
     substeps: PositiveInt = 1
     period: PositiveInt = 1
     rtol: PositiveFloat = 1e-8
-    parameters: dict[str, Scalar] = {}
-    start: dict[str, float] = {}
+    parameters: dict[str, Value] = {}
+    start: dict[str, Value] = {}
     #: roles -> FMU variables with unit conversion (a TOML file name or an inline table;
     #: see :mod:`uwcosim.master.varmap`); start values may then use the role names
     map: str | dict[str, str | dict[str, Scalar]] | None = None

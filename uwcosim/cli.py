@@ -17,11 +17,12 @@ from uwcosim.errors import UwcosimError
 
 
 def _cmd_run(args) -> int:
-    from uwcosim.runner import run_scenario
+    from uwcosim.runner import prepare_out_dir, run_scenario
     from uwcosim.scenario import load_scenario
 
     loaded = load_scenario(args.scenario, args.set or [])
     out = Path(args.out) if args.out else Path("runs") / loaded.path.stem
+    prepare_out_dir(out, args.force)
     result = run_scenario(loaded, out, seed=args.seed, figures=not args.no_figures)
     from uwcosim.plots.run_figures import results_table
 
@@ -144,6 +145,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="override any scenario key, e.g. --set run.duration=100")
     r.add_argument("--no-figures", action="store_true", help="skip figures and report")
+    r.add_argument("--force", action="store_true",
+                   help="run into a non-empty run directory, replacing its run files")
     r.set_defaults(func=_cmd_run)
 
     f = sub.add_parser("fmu", help="build and inspect FMUs")
@@ -227,15 +230,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from uwcosim.runguard import install_cli_handlers, signal_name
+
     args = build_parser().parse_args(argv)
+    install_cli_handlers()
     try:
         return int(args.func(args) or 0)
     except UwcosimError as exc:
         print(f"uwcosim: error: {exc}", file=sys.stderr)
         return exc.exit_code
-    except KeyboardInterrupt:
-        print("uwcosim: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", 2)
+        print(f"uwcosim: interrupted by {signal_name(signum)}", file=sys.stderr)
+        return 128 + signum
 
 
 if __name__ == "__main__":

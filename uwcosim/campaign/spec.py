@@ -96,6 +96,12 @@ def load_campaign(path: str | Path) -> LoadedCampaign:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{where}: invalid TOML ({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{where}: not a UTF-8 text file (byte {exc.start}: {exc.reason})"
+                            ) from None
+    except OSError as exc:
+        raise ScenarioError(f"{where}: cannot read the campaign ({exc.strerror or exc})"
+                            ) from None
     try:
         spec = CampaignSpec.model_validate(data)
     except ValidationError as exc:

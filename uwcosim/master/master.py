@@ -97,6 +97,9 @@ class Master:
         self.workdir = workdir
         self.master_time_s = 0.0
         self._initialized = False
+        #: the FMU call in progress: (fmu, call, t, time.monotonic() at its start), or None
+        #: (read by the run-wide watchdog, uwcosim.runguard)
+        self.busy: tuple[str, str, float, float] | None = None
         self.adapters: dict[str, FMUAdapter] = {}
         try:
             self._build()
@@ -293,10 +296,13 @@ class Master:
             f = self.spec.fmus[name]
             params = dict(f.parameters)
             params.update((start_overrides or {}).get(name, {}))
+            self.busy = (name, "instantiate", self.t0, time.monotonic())
             try:
                 node.adapter.instantiate(params, dict(f.start), self.t0, t_stop)
             except FMUError as exc:
                 raise FMUError(f"{exc} [scenario key 'fmus.{name}']") from None
+            finally:
+                self.busy = None
         self.k = 0
         self._load_sources(0)
         for node in self.nodes:
@@ -336,8 +342,12 @@ class Master:
                 continue
             a = time.perf_counter()
             np.take(self.bus, node.in_slots, out=node.inputs.view)
-            node.adapter.do_step(self.t0 + (k + 1 - p) * self.h, p * self.h, node.inputs,
-                                 node.input_fn)
+            t_start = self.t0 + (k + 1 - p) * self.h
+            self.busy = (node.adapter.name, "doStep", t_start, time.monotonic())
+            try:
+                node.adapter.do_step(t_start, p * self.h, node.inputs, node.input_fn)
+            finally:
+                self.busy = None
             self._read(node, t_next)
             dt = time.perf_counter() - a
             node.time_s += dt

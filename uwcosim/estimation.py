@@ -16,7 +16,7 @@ import numpy as np
 
 from uwcosim.errors import FilterDivergence, ScenarioError
 from uwcosim.filters import ESTIMATORS, Estimator
-from uwcosim.master.sources import gaussian, stream
+from uwcosim.master.sources import ChunkedTable, gaussian_drawer, stream
 
 
 @dataclass
@@ -61,21 +61,23 @@ class EstimatorBank:
         self.meas_slots = np.array(slots, dtype=np.intp)
         self._z_step = -1
         # sensors with sigma but no noise inputs: the master's stream adds the noise here
+        # (drawn in chunks as the run goes, as the master's sources)
         n = master.n_steps + 1
-        self.additive = np.zeros((n, len(slots)))
-        col = 0
+        makers = []
         for sname in mspec.sensors:
             s = spec.sensors[sname]
             if s.sigma and not s.noise_inputs:
                 if len(s.sigma) != len(s.outputs):
                     self._bad(f"sensors.{sname}.sigma: additive noise needs one sigma per "
                               f"output ({len(s.outputs)})")
-                self.additive[:, col:col + len(s.outputs)] = gaussian(
-                    stream(master.seed, f"sensor-noise:{sname}"), n, s.sigma)
-            col += len(s.outputs)
+                makers.append(lambda sname=sname, s=s: gaussian_drawer(
+                    stream(master.seed, f"sensor-noise:{sname}"), s.sigma))
+            else:
+                makers.append(lambda w=len(s.outputs):
+                              lambda k0, m: np.zeros((m, w)))
+        self.additive = ChunkedTable(n, makers, len(slots))
         self.sensor_of = sensor_of
-        self.received = np.stack([master.sensors[s].received for s in sensor_of], axis=1) \
-            if sensor_of else np.zeros((master.n_steps + 1, 0), bool)
+        self._sensors = [master.sensors[s] for s in sensor_of]
         x_true0 = master.bus[self.truth_slots]
         est_common = spec.estimation
         init_rng = stream(master.seed, "initial-error")
@@ -111,8 +113,9 @@ class EstimatorBank:
 
         Computed once per step (the estimators and the logger both read it)."""
         if self._z_step != master.k:
-            rec = self.received[master.k]
-            self._z = np.where(rec, master.bus[self.meas_slots] + self.additive[master.k],
+            k = master.k
+            rec = np.array([s.received_at(k) for s in self._sensors], dtype=bool)
+            self._z = np.where(rec, master.bus[self.meas_slots] + self.additive.row(k),
                                np.nan), rec
             self._z_step = master.k
         return self._z

@@ -3,8 +3,9 @@
 Time is an integer count of base steps: ``t = t0 + k*h``, never accumulated. Each FMU runs at
 an integer multiple ``period`` of ``h``; FMUs are stepped Gauss-Seidel in dependency order.
 Signals live in one flat array, the *bus*: every FMU output and every source has a slot, and
-each FMU input reads a slot. Sources (controls, noise) are pre-sampled for the whole run from
-the master's seeded streams; closed-loop sources (waypoints) are evaluated per step.
+each FMU input reads a slot. Sources (controls, noise, sensor sampling and losses) are sampled
+from the master's seeded streams in chunks as the run goes (memory does not depend on the
+duration); closed-loop sources (waypoints) are evaluated per step.
 
 Step-by-step API::
 
@@ -19,7 +20,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -29,12 +30,13 @@ from uwcosim.master.adapter import Binding, FMUAdapter
 from uwcosim.master.graph import stepping_order
 from uwcosim.master.proxy import ProxyAdapter
 from uwcosim.master.sources import (
+    ChunkedTable,
     TableControl,
     WaypointHeading,
-    gaussian,
-    loss_mask,
+    gaussian_drawer,
+    loss_drawer,
+    noise_drawer,
     stream,
-    white_noise,
 )
 from uwcosim.master.varmap import ROLES, load_entries
 from uwcosim.scenario.load import LoadedScenario
@@ -60,8 +62,14 @@ class Sensor:
     outputs: list[str]
     slots: np.ndarray
     period: int
-    received: np.ndarray  # [n_steps + 1] bool: sampled and not lost at step k
-    sampled: np.ndarray = field(default=None)
+    mask: ChunkedTable  # column 0: sampled and not lost at step k
+
+    def received_at(self, k: int) -> bool:
+        """Sampled and not lost at step ``k`` (steps are read in increasing order)."""
+        return bool(self.mask.row(k)[0])
+
+    def sampled_at(self, k: int) -> bool:
+        return k > 0 and k % self.period == 0
 
 
 class StageInputs:
@@ -234,35 +242,46 @@ class Master:
 
     def _sample_sources(self) -> None:
         n = self.n_steps + 1
-        times = self.t0 + self.h * np.arange(n)
-        cols, slots = [], []
+        seed, t0, h = self.seed, self.t0, self.h
+        makers, slots = [], []
         for cname, ctl in self.controls.items():
             if isinstance(ctl, TableControl):
-                cols.append(ctl.samples(times)[:, None])
+                makers.append(lambda ctl=ctl: lambda k0, m: ctl.samples(
+                    t0 + h * np.arange(k0, k0 + m))[:, None])
                 slots.append([self.slots[f"controls.{cname}"]])
         for nname, nz in self.spec.noise.items():
-            cols.append(white_noise(stream(self.seed, f"noise:{nname}"), n, nz.psd, self.h))
+            makers.append(lambda nname=nname, nz=nz: noise_drawer(
+                stream(seed, f"noise:{nname}"), nz.psd, h))
             slots.append([self.slots[f"noise.{nname}.{i}"] for i in range(len(nz.targets))])
         for sname, s in self.spec.sensors.items():
             if s.noise_inputs:
-                cols.append(gaussian(stream(self.seed, f"sensor-noise:{sname}"), n, s.sigma))
+                makers.append(lambda sname=sname, s=s: gaussian_drawer(
+                    stream(seed, f"sensor-noise:{sname}"), s.sigma))
                 slots.append([self.slots[f"sensornoise.{sname}.{i}"]
                               for i in range(len(s.noise_inputs))])
-        self.source_table = np.hstack(cols) if cols else np.zeros((n, 0))
         self.source_slots = np.array([s for group in slots for s in group], dtype=np.intp)
+        self.sources = ChunkedTable(n, makers, len(self.source_slots))
         self.dynamic = [(self.slots[f"controls.{c}"], ctl) for c, ctl in self.controls.items()
                         if not isinstance(ctl, TableControl)]
 
     def _build_sensors(self) -> dict[str, Sensor]:
         out = {}
         n = self.n_steps + 1
+        seed = self.seed
         for sname, s in self.spec.sensors.items():
             slots = np.array([self._slot(o, f"sensors.{sname}.outputs") for o in s.outputs],
                              dtype=np.intp)
-            k = np.arange(n)
-            sampled = (k % s.period == 0) & (k > 0)
-            received = sampled & loss_mask(stream(self.seed, f"loss:{sname}"), n, s.loss)
-            out[sname] = Sensor(sname, list(s.outputs), slots, s.period, received, sampled)
+
+            def maker(sname=sname, s=s):
+                lost = loss_drawer(stream(seed, f"loss:{sname}"), n, s.loss)
+
+                def draw(k0: int, m: int) -> np.ndarray:
+                    k = np.arange(k0, k0 + m)
+                    return ((k % s.period == 0) & (k > 0)) & lost(k0, m)
+                return draw
+
+            out[sname] = Sensor(sname, list(s.outputs), slots, s.period,
+                                ChunkedTable(n, [maker], 1, dtype=bool))
         return out
 
     def reset(self, seed: int | None = None) -> None:
@@ -312,7 +331,7 @@ class Master:
         self._initialized = True
 
     def _load_sources(self, k: int) -> None:
-        self.bus[self.source_slots] = self.source_table[k]
+        self.bus[self.source_slots] = self.sources.row(k)
         for slot, ctl in self.dynamic:
             x, y = self.bus[ctl.pos_slots]
             self.bus[slot] = ctl.value_at(x, y)

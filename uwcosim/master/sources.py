@@ -3,11 +3,18 @@
 All randomness comes from :func:`stream`, one independent ``numpy.random.Generator`` per named
 purpose derived from the run seed, so adding a sensor does not change another sensor's noise,
 and the same scenario and seed always give the same samples.
+
+Samples are drawn in chunks of :data:`CHUNK_STEPS` steps as the run goes (:class:`ChunkedTable`),
+so memory does not depend on the run's duration. Each stream is drawn in the same order as one
+draw for the whole run would be (``standard_normal`` and ``random`` fill their output in order;
+the Gilbert-Elliott switch draws, which followed all ``n`` loss draws, come from a copy of the
+stream advanced by ``n``), so a run's samples do not depend on the chunk size.
 """
 
 from __future__ import annotations
 
 import zlib
+from collections.abc import Callable
 
 import numpy as np
 
@@ -77,6 +84,89 @@ class WaypointHeading:
         return self.last if self.last is not None else 0.0
 
 
+#: steps of samples held in memory per source table
+CHUNK_STEPS = 65_536
+
+#: ``draw(k0, m)``: samples of steps ``k0 .. k0+m-1`` as ``[m, width]``; called for consecutive
+#: chunks from ``k0 = 0``
+Drawer = Callable[[int, int], np.ndarray]
+
+
+class ChunkedTable:
+    """Rows ``0 .. n-1`` of sampled sources, generated one chunk at a time.
+
+    ``makers``: functions returning a fresh drawer (from the start of its stream). Rows are
+    read in increasing order (a jump back restarts the streams and draws up to that row)."""
+
+    def __init__(self, n: int, makers: list[Callable[[], Drawer]], width: int,
+                 dtype=float, chunk: int | None = None) -> None:
+        self.n, self.makers, self.width, self.dtype = int(n), makers, width, dtype
+        self.chunk = int(CHUNK_STEPS if chunk is None else chunk)
+        self._restart()
+
+    def _restart(self) -> None:
+        self._drawers = [m() for m in self.makers]
+        self.k0 = 0
+        self.rows = np.zeros((0, self.width), dtype=self.dtype)
+
+    def _next(self) -> None:
+        k0 = self.k0 + len(self.rows)
+        m = min(self.chunk, self.n - k0)
+        if m <= 0:
+            raise IndexError(f"step {k0} is beyond the run's {self.n} samples")
+        cols = [np.asarray(d(k0, m), dtype=self.dtype).reshape(m, -1) for d in self._drawers]
+        self.rows = np.hstack(cols) if cols else np.zeros((m, 0), dtype=self.dtype)
+        self.k0 = k0
+
+    def row(self, k: int) -> np.ndarray:
+        """Row ``k`` (a view: copy it to keep it)."""
+        if k < self.k0:
+            self._restart()
+        while k >= self.k0 + len(self.rows):
+            self._next()
+        return self.rows[k - self.k0]
+
+
+def noise_drawer(rng: np.random.Generator, psd, h: float) -> Drawer:
+    scale = np.sqrt(np.asarray(psd, dtype=float) / h)
+    return lambda k0, m: rng.standard_normal((m, scale.size)) * scale
+
+
+def gaussian_drawer(rng: np.random.Generator, sigma) -> Drawer:
+    sigma = np.asarray(sigma, dtype=float)
+    return lambda k0, m: rng.standard_normal((m, sigma.size)) * sigma
+
+
+def loss_drawer(rng: np.random.Generator, n: int,
+                spec: BernoulliLoss | GilbertElliottLoss | None) -> Drawer:
+    """Chunks of :func:`loss_mask` ``(rng, n, spec)``, drawn as the run goes."""
+    if spec is None:
+        return lambda k0, m: np.ones(m, dtype=bool)
+    if isinstance(spec, BernoulliLoss):
+        return lambda k0, m: rng.random(m) >= spec.p
+    bits = type(rng.bit_generator)()
+    bits.state = rng.bit_generator.state
+    bits.advance(n)  # the switch draws followed the n loss draws
+    switch_rng = np.random.Generator(bits)
+    state = [False]
+
+    def draw(k0: int, m: int) -> np.ndarray:
+        u = rng.random(m)
+        switch = switch_rng.random(m)
+        bad = np.empty(m, dtype=bool)
+        st = state[0]
+        for i in range(m):
+            bad[i] = st
+            if st:
+                st = switch[i] >= spec.p_bad_to_good
+            else:
+                st = switch[i] < spec.p_good_to_bad
+        state[0] = st
+        return u >= np.where(bad, spec.loss_bad, spec.loss_good)
+
+    return draw
+
+
 def white_noise(rng: np.random.Generator, n_steps: int, psd, h: float) -> np.ndarray:
     """Held white-noise samples ``[n_steps, n]`` of variance ``psd / h`` (PSD held over h)."""
     psd = np.asarray(psd, dtype=float)
@@ -97,19 +187,4 @@ def loss_mask(
     Markov chain (good/bad) with transition probabilities ``p_good_to_bad``,
     ``p_bad_to_good`` and loss probabilities ``loss_good``, ``loss_bad`` per state (bursts).
     """
-    if spec is None:
-        return np.ones(n, dtype=bool)
-    u = rng.random(n)
-    if isinstance(spec, BernoulliLoss):
-        return u >= spec.p
-    switch = rng.random(n)
-    bad = np.empty(n, dtype=bool)
-    state = False
-    for i in range(n):
-        bad[i] = state
-        if state:
-            state = switch[i] >= spec.p_bad_to_good
-        else:
-            state = switch[i] < spec.p_good_to_bad
-    p_loss = np.where(bad, spec.loss_bad, spec.loss_good)
-    return u >= p_loss
+    return loss_drawer(rng, n, spec)(0, n)

@@ -3,7 +3,9 @@
 At each communication step ``t_k -> t_{k+1}`` every estimator predicts with the control held
 over the step, then updates with the measurements received at ``t_{k+1}`` (common random
 numbers: all estimators see the same measurements), after its lost-measurement policy has
-decided what to feed it. A diverging estimator is flagged and stopped; the others go on.
+decided what to feed it. A diverging estimator (:mod:`uwcosim.divergence`: non-finite state,
+covariance not symmetric positive definite, negative NIS/NEES, position out of bounds) is
+flagged and stopped; the others go on.
 """
 
 from __future__ import annotations
@@ -36,7 +38,10 @@ class Track:
 class EstimatorBank:
     """All estimators of a run, fed from the master's bus."""
 
-    def __init__(self, master, model, where: str) -> None:
+    def __init__(self, master, model, where: str,
+                 map_extent: tuple[float, float, float, float] | None = None) -> None:
+        from uwcosim.divergence import DivergenceCheck, default_bound
+        from uwcosim.evaluation.metrics import position_velocity_indices
         from uwcosim.filters.policies import POLICIES
 
         spec = master.spec
@@ -80,6 +85,11 @@ class EstimatorBank:
         self._sensors = [master.sensors[s] for s in sensor_of]
         x_true0 = master.bus[self.truth_slots]
         est_common = spec.estimation
+        bound = est_common.position_bound if est_common is not None else None
+        if bound is None and map_extent is not None:
+            bound = default_bound(map_extent)
+        pos = position_velocity_indices(model.state_names)[0]
+        self.check = DivergenceCheck(tuple(pos), tuple(bound) if bound is not None else None)
         init_rng = stream(master.seed, "initial-error")
         std0 = np.asarray(est_common.initial_std if est_common else np.ones(model.nx), float)
         err0 = init_rng.standard_normal(model.nx) * std0
@@ -141,7 +151,13 @@ class EstimatorBank:
                 tr.diverged_at = t
                 tr.error = str(exc)
             tr.step_times.append(time.perf_counter() - a)
-            tr.nees = self.nees(est, master) if tr.diverged_at is None else float("nan")
+            if tr.diverged_at is None:
+                tr.nees = self.nees(est, master)
+                why = self.check(est.x, est.P, est.diagnostics.get("nis", np.nan), tr.nees)
+                if why:
+                    tr.diverged_at, tr.error = t, why
+            if tr.diverged_at is not None:
+                tr.nees = float("nan")
 
     def nees(self, est: Estimator, master) -> float:
         """``e' P^-1 e`` with ``e = x_true - x`` (NaN if ``P`` is singular)."""

@@ -226,7 +226,8 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
             master.initialize(overrides)
             if spec.estimators:
                 model = build_model(loaded, bathy)
-                bank = EstimatorBank(master, model, str(loaded.path))
+                bank = EstimatorBank(master, model, str(loaded.path),
+                                     bathy.extent if bathy is not None else None)
                 master.hooks.append(bank)
             cols, slots, flags = _columns(master, bank, model)
             meta = {

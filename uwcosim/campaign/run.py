@@ -78,6 +78,7 @@ def run_campaign(campaign: LoadedCampaign, out: Path, runs: int | None = None,
                  workers: int | None = None, scheduler: str | None = None,
                  resume: bool = False, figures: bool = True) -> dict:
     out = Path(out)
+    campaign.tasks(runs, out)  # refuses a bad --runs before anything is written
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

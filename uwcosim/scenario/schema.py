@@ -192,6 +192,17 @@ class EstimatorSpec(BaseModel):
 class EstimationSpec(Strict):
     initial_std: list[Annotated[Float, Field(gt=0)]]
     initial_error: Literal["random", "zero"] = "random"
+    #: [xmin, xmax, ymin, ymax] (m): an estimate outside is diverged (default: the map's
+    #: extent widened by its larger side; uwcosim.divergence)
+    position_bound: tuple[Float, Float, Float, Float] | None = None
+
+    @model_validator(mode="after")
+    def _bound(self) -> EstimationSpec:
+        b = self.position_bound
+        if b is not None and not (b[0] < b[1] and b[2] < b[3]):
+            raise ValueError(f"'position_bound' must be [xmin, xmax, ymin, ymax] with "
+                             f"xmin < xmax and ymin < ymax (got {list(b)})")
+        return self
 
 
 class LogSpec(Strict):

@@ -91,6 +91,10 @@ def _cmd_baseline(args) -> int:
         update_baseline,
     )
 
+    if args.baseline_command == "check":
+        from uwcosim.regress.compare import check_tolerances
+
+        check_tolerances(args.rtol, args.atol, args.ttol)
     scenarios = [Path(s) for s in args.scenarios] or shipped_scenarios(args.scenario_dir)
     bad = 0
     for sc in scenarios:

@@ -138,8 +138,15 @@ def _cmd_campaign(args) -> int:
     return 1 if summary.get("failed") else 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error (as every other user error): no usage block."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} -h)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="uwcosim", description=__doc__.splitlines()[0])
+    p = _Parser(prog="uwcosim", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("run", help="run a scenario")

@@ -38,9 +38,9 @@ from uwcosim.errors import RunInterrupted
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 #: seconds the main thread has to stop at a step boundary before the watcher finalizes
-GRACE_S = 1.0
+GRACE_S = 0.5
 #: seconds after a signal by which the process is gone, whatever the main thread does
-HARD_S = 1.8
+HARD_S = 1.5
 _POLL_S = 0.05
 
 _active: RunGuard | None = None

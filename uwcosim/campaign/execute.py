@@ -226,11 +226,11 @@ def _iterate(tasks: list[Task], workers: int, scheduler: str | None) -> Iterable
                 for f in as_completed(futures):
                     yield futures[f], f.result()
             except BaseException:
-                for f in futures:
-                    f.cancel()
+                # in-flight runs are abandoned (not recorded: --resume runs them again). The
+                # pool then fails every pending future itself (cancelling them first races
+                # with that in Python 3.11: InvalidStateError in the pool's thread)
                 for proc in list((getattr(ex, "_processes", None) or {}).values()):
-                    proc.kill()  # in-flight runs are abandoned (not recorded: --resume redoes)
-                ex.shutdown(wait=False, cancel_futures=True)
+                    proc.kill()
                 raise
 
 

@@ -31,14 +31,16 @@ from uwcosim.scenario.load import format_validation_error, load_scenario
 
 
 class Variant(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
     name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$")
     scenario: str
     set: list[str] = []
 
 
 class CampaignSpec(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    """Strict types, as scenarios: ``seed = "1"`` is refused."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
     name: str = "campaign"
     description: str = ""
     seed: int = 0

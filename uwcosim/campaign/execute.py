@@ -19,6 +19,7 @@ import tempfile
 import traceback
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from uwcosim.campaign.spec import Task
@@ -224,7 +225,15 @@ def _iterate(tasks: list[Task], workers: int, scheduler: str | None) -> Iterable
             futures = {ex.submit(execute_run, t): t for t in tasks}
             try:
                 for f in as_completed(futures):
-                    yield futures[f], f.result()
+                    try:
+                        record = f.result()
+                    except BrokenProcessPool:
+                        t = futures[f]
+                        raise UwcosimError(
+                            f"a campaign worker process died during run {t.run} of variant "
+                            f"{t.variant!r} (crashed FMU, watchdog, or killed); finished runs "
+                            f"are kept, --resume continues") from None
+                    yield futures[f], record
             except BaseException:
                 # in-flight runs are abandoned (not recorded: --resume runs them again). The
                 # pool then fails every pending future itself (cancelling them first races

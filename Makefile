@@ -17,7 +17,7 @@ fmus: $(STAMP)
 	$(UWC) fmu build
 
 demo: fmus
-	$(UWC) run scenarios/tan_terrain.toml --out runs/demo
+	$(UWC) run scenarios/tan_terrain.toml --out runs/demo --force
 
 test: fmus
 	$(PY) -m pytest -q

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import inspect
 import time
+from array import array
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,7 +33,7 @@ class Track:
     nees: float = float("nan")
     diverged_at: float | None = None
     error: str = ""
-    step_times: list[float] = field(default_factory=list)
+    step_times: array = field(default_factory=lambda: array("d"))  # 8 bytes per step
 
 
 class EstimatorBank:

@@ -238,3 +238,15 @@ def test_campaign_workers_die_with_the_campaign(tmp_path, project_fmus, sig):
         assert proc.returncode == 143, err
         assert "Traceback" not in err and "campaign interrupted by SIGTERM" in err
         assert "partial" in (out / "report.md").read_text().lower()
+
+
+def test_fmu_worker_dies_when_the_run_is_killed(tmp_path, project_fmus):
+    proc = _spawn("run", str(SCEN), "--out", str(tmp_path), "--no-figures",
+                  *_hang(timeout_s=30.0))
+    _wait_for(tmp_path / "log.parquet.journal", proc)
+    time.sleep(0.5)
+    kids = descendants(proc.pid)
+    assert kids
+    proc.kill()
+    proc.communicate(timeout=30)
+    assert_all_gone(kids)

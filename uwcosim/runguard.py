@@ -142,7 +142,7 @@ class RunGuard:
             old = signal.getsignal(s)
             if old is signal.SIG_IGN:
                 continue
-            self._saved[s] = old
+            self._saved[s] = signal.SIG_DFL if old is None else old  # None: set from C
             signal.signal(s, self._handler)
         self._saved_fd = signal.set_wakeup_fd(self._wfd, warn_on_full_buffer=False)
         self._thread = threading.Thread(target=self._watch, name="uwcosim-runguard",

@@ -17,7 +17,7 @@ fmus: $(STAMP)
 	$(UWC) fmu build
 
 demo: fmus
-	$(UWC) run scenarios/tan_terrain.toml --out runs/demo
+	$(UWC) run scenarios/tan_terrain.toml --out runs/demo --force
 
 # the HTML report tests open the page in a real headless Chromium (Debian's package)
 chromium:

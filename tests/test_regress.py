@@ -124,7 +124,7 @@ def test_cli_exit_status(base, tmp_path):
     assert r.returncode == 1 and "FAILED x" in r.stdout
     assert (run_dir / "regress" / "x.png").is_file()
     r = _cli("regress", str(run_dir), str(tmp_path / "missing.parquet"))
-    assert r.returncode == 2 and "run log not found" in r.stderr
+    assert r.returncode == 2 and "baseline not found" in r.stderr
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
     r = _cli("regress", str(run_dir), str(ref), "--signals", "nothing*")
     assert r.returncode == 2 and "no signals matching nothing* in common" in r.stderr

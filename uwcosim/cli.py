@@ -41,11 +41,12 @@ def _print_result(result) -> None:
 
 
 def _cmd_run(args) -> int:
-    from uwcosim.runner import run_scenario
+    from uwcosim.runner import prepare_out_dir, run_scenario
     from uwcosim.scenario import load_scenario
 
     loaded = load_scenario(args.scenario, args.set or [], overrides_base=Path.cwd())
     out = Path(args.out) if args.out else Path("runs") / loaded.path.stem
+    prepare_out_dir(out, args.force)
     _print_result(run_scenario(loaded, out, seed=args.seed, figures=not args.no_figures))
     return 0
 
@@ -143,6 +144,10 @@ def _cmd_baseline(args) -> int:
         update_baseline,
     )
 
+    if args.baseline_command == "check":
+        from uwcosim.regress.compare import check_tolerances
+
+        check_tolerances(args.rtol, args.atol, args.ttol)
     scenarios = [Path(s) for s in args.scenarios] or shipped_scenarios(args.scenario_dir)
     print(f"baselines: {args.dir}", file=sys.stderr)
     bad = 0
@@ -195,6 +200,13 @@ def _cmd_campaign(args) -> int:
     return 1 if summary.get("failed") else 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error (as every other user error): no usage block."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} -h)\n")
+
+
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     """Shows ``(default: X)`` after every help text, except for flags and unset (None)."""
 
@@ -223,7 +235,7 @@ SET_HELP = ("override any scenario key with a TOML value, e.g. --set run.duratio
 def build_parser() -> argparse.ArgumentParser:
     from uwcosim.paths import baselines_dir, scenarios_dir
 
-    p = argparse.ArgumentParser(prog="uwcosim", description=__doc__.splitlines()[0])
+    p = _Parser(prog="uwcosim", description=__doc__.splitlines()[0])
     p.add_argument("--version", action="version", version=f"uwcosim {__version__}",
                    help="print the version and exit")
     p.add_argument("-v", "--verbose", action="count", default=0,
@@ -239,6 +251,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", default=None, help="run directory (default runs/<scenario name>)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
     r.add_argument("--no-figures", action="store_true", help="skip figures and report")
+    r.add_argument("--force", action="store_true",
+                   help="run into a non-empty run directory, replacing its run files")
     r.set_defaults(func=_cmd_run)
 
     rp = sub.add_parser("report", help="rebuild the figures and report.md of an existing run "
@@ -375,19 +389,23 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from uwcosim.runguard import install_cli_handlers, signal_name
+
     args = build_parser().parse_args(argv)
     level = max(logging.DEBUG, min(logging.WARNING + 10 * (args.quiet - args.verbose),
                                    logging.ERROR))
     logging.basicConfig(format="%(levelname)s %(name)s: %(message)s")
     logging.getLogger().setLevel(level)
+    install_cli_handlers()
     try:
         return int(args.func(args) or 0)
     except UwcosimError as exc:
         print(f"uwcosim: error: {exc}", file=sys.stderr)
         return exc.exit_code
-    except KeyboardInterrupt:
-        print("uwcosim: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", 2)
+        print(f"uwcosim: interrupted by {signal_name(signum)}", file=sys.stderr)
+        return 128 + signum
 
 
 if __name__ == "__main__":

@@ -3,20 +3,23 @@
 At each communication step ``t_k -> t_{k+1}`` every estimator predicts with the control held
 over the step, then updates with the measurements received at ``t_{k+1}`` (common random
 numbers: all estimators see the same measurements), after its lost-measurement policy has
-decided what to feed it. A diverging estimator is flagged and stopped; the others go on.
+decided what to feed it. A diverging estimator (:mod:`uwcosim.divergence`: non-finite state,
+covariance not symmetric positive definite, negative NIS/NEES, position out of bounds) is
+flagged and stopped; the others go on.
 """
 
 from __future__ import annotations
 
 import inspect
 import time
+from array import array
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from uwcosim.errors import FilterDivergence, ScenarioError
 from uwcosim.filters import ESTIMATORS, Estimator
-from uwcosim.master.sources import gaussian, stream
+from uwcosim.master.sources import ChunkedTable, gaussian_drawer, stream
 
 
 @dataclass
@@ -30,13 +33,16 @@ class Track:
     nees: float = float("nan")
     diverged_at: float | None = None
     error: str = ""
-    step_times: list[float] = field(default_factory=list)
+    step_times: array = field(default_factory=lambda: array("d"))  # 8 bytes per step
 
 
 class EstimatorBank:
     """All estimators of a run, fed from the master's bus."""
 
-    def __init__(self, master, model, where: str) -> None:
+    def __init__(self, master, model, where: str,
+                 map_extent: tuple[float, float, float, float] | None = None) -> None:
+        from uwcosim.divergence import DivergenceCheck, default_bound
+        from uwcosim.evaluation.metrics import position_velocity_indices
         from uwcosim.filters.policies import POLICIES
 
         spec = master.spec
@@ -61,23 +67,30 @@ class EstimatorBank:
         self.meas_slots = np.array(slots, dtype=np.intp)
         self._z_step = -1
         # sensors with sigma but no noise inputs: the master's stream adds the noise here
+        # (drawn in chunks as the run goes, as the master's sources)
         n = master.n_steps + 1
-        self.additive = np.zeros((n, len(slots)))
-        col = 0
+        makers = []
         for sname in mspec.sensors:
             s = spec.sensors[sname]
             if s.sigma and not s.noise_inputs:
                 if len(s.sigma) != len(s.outputs):
                     self._bad(f"sensors.{sname}.sigma: additive noise needs one sigma per "
                               f"output ({len(s.outputs)})")
-                self.additive[:, col:col + len(s.outputs)] = gaussian(
-                    stream(master.seed, f"sensor-noise:{sname}"), n, s.sigma)
-            col += len(s.outputs)
+                makers.append(lambda sname=sname, s=s: gaussian_drawer(
+                    stream(master.seed, f"sensor-noise:{sname}"), s.sigma))
+            else:
+                makers.append(lambda w=len(s.outputs):
+                              lambda k0, m: np.zeros((m, w)))
+        self.additive = ChunkedTable(n, makers, len(slots))
         self.sensor_of = sensor_of
-        self.received = np.stack([master.sensors[s].received for s in sensor_of], axis=1) \
-            if sensor_of else np.zeros((master.n_steps + 1, 0), bool)
+        self._sensors = [master.sensors[s] for s in sensor_of]
         x_true0 = master.bus[self.truth_slots]
         est_common = spec.estimation
+        bound = est_common.position_bound if est_common is not None else None
+        if bound is None and map_extent is not None:
+            bound = default_bound(map_extent)
+        pos = position_velocity_indices(model.state_names)[0]
+        self.check = DivergenceCheck(tuple(pos), tuple(bound) if bound is not None else None)
         init_rng = stream(master.seed, "initial-error")
         std0 = np.asarray(est_common.initial_std if est_common else np.ones(model.nx), float)
         err0 = init_rng.standard_normal(model.nx) * std0
@@ -111,8 +124,9 @@ class EstimatorBank:
 
         Computed once per step (the estimators and the logger both read it)."""
         if self._z_step != master.k:
-            rec = self.received[master.k]
-            self._z = np.where(rec, master.bus[self.meas_slots] + self.additive[master.k],
+            k = master.k
+            rec = np.array([s.received_at(k) for s in self._sensors], dtype=bool)
+            self._z = np.where(rec, master.bus[self.meas_slots] + self.additive.row(k),
                                np.nan), rec
             self._z_step = master.k
         return self._z
@@ -138,7 +152,13 @@ class EstimatorBank:
                 tr.diverged_at = t
                 tr.error = str(exc)
             tr.step_times.append(time.perf_counter() - a)
-            tr.nees = self.nees(est, master) if tr.diverged_at is None else float("nan")
+            if tr.diverged_at is None:
+                tr.nees = self.nees(est, master)
+                why = self.check(est.x, est.P, est.diagnostics.get("nis", np.nan), tr.nees)
+                if why:
+                    tr.diverged_at, tr.error = t, why
+            if tr.diverged_at is not None:
+                tr.nees = float("nan")
 
     def nees(self, est: Estimator, master) -> float:
         """``e' P^-1 e`` with ``e = x_true - x`` (NaN if ``P`` is singular)."""

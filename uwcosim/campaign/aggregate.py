@@ -8,7 +8,6 @@ the mean over runs of each run's RMSE) goes to ``table.md`` and ``table.csv``.
 from __future__ import annotations
 
 import csv
-import json
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +19,11 @@ METRICS = ("rmse_position_m", "rmse_x_m", "rmse_y_m", "rmse_velocity_mps", "rmse
 
 
 def read_records(results: Path) -> list[dict]:
-    return [json.loads(p.read_text()) for p in sorted(results.glob("*.json"))]
+    """Every complete record (a truncated file, e.g. of a killed campaign, is skipped)."""
+    from uwcosim.campaign.execute import read_record
+
+    records = (read_record(p) for p in sorted(results.glob("*.json")))
+    return [r for r in records if r is not None]
 
 
 def run_rows(records: list[dict]) -> list[dict]:

@@ -1,8 +1,12 @@
 """Execute a campaign's runs: in this process, on local worker processes, or on Dask.
 
 Each finished run is written at once to ``results/<variant>__<run>.json`` (atomically), so an
-interruption loses nothing already finished and ``--resume`` skips those runs. A failed run is
-recorded with its error and the campaign goes on.
+interruption loses nothing already finished and ``--resume`` skips those runs (a record that is
+not valid JSON is taken as not done and run again). A failed run is recorded with its error
+and the campaign goes on; its run directory is kept in ``failed/<variant>/run_NNNNN``.
+
+Pool workers die with the campaign (``prctl`` parent-death signal) and ignore SIGINT, SIGTERM
+and SIGHUP (the campaign process decides); an interrupted campaign kills them.
 """
 
 from __future__ import annotations
@@ -15,10 +19,11 @@ import tempfile
 import traceback
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from uwcosim.campaign.spec import Task
-from uwcosim.errors import ScenarioError, UwcosimError
+from uwcosim.errors import RunInterrupted, ScenarioError, UwcosimError
 
 _SCENARIOS: dict = {}  # per worker process: (path, overrides) -> LoadedScenario
 _MASTERS: dict = {}  # per worker process: (path, overrides) -> Master (FMU instances reused)
@@ -73,8 +78,12 @@ def execute_run(task: Task) -> dict:
             master.close()
         record["estimators"] = res.summary["estimators"]
         record["timing"] = res.summary["timing"]
+        record["scenario_sha256"] = loaded.sha256
+    except RunInterrupted:
+        raise  # the campaign stops: this run is not done
     except UwcosimError as exc:
-        record.update(status="failed", error=str(exc))
+        record.update(status="failed", error=_kept_failed(str(exc), tmp, task))
+        tmp = None if tmp and task.fail_dir else tmp
     except Exception as exc:  # noqa: BLE001 - a campaign records any run failure and goes on
         last = traceback.extract_tb(exc.__traceback__)[-1]
         record.update(status="failed", error=f"{type(exc).__name__}: {exc} "
@@ -85,6 +94,33 @@ def execute_run(task: Task) -> dict:
     return record
 
 
+def _kept_failed(error: str, tmp: str | None, task: Task) -> str:
+    """Move a failed run's temporary directory under the campaign's ``failed/`` and name that
+    path in the error (the temporary one is deleted)."""
+    if not tmp or not task.fail_dir:
+        return error
+    dest = Path(task.fail_dir)
+    try:
+        if dest.exists():
+            shutil.rmtree(dest)
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        shutil.move(tmp, dest)
+    except OSError:
+        return error
+    return error.replace(str(Path(tmp)), str(dest))
+
+
+def _worker_init(parent: int) -> None:
+    """Pool worker: die with the campaign, leave signals to it."""
+    import signal
+
+    from uwcosim.master.proxy import die_with_parent
+
+    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(s, signal.SIG_IGN)
+    die_with_parent(parent)
+
+
 def _write(results: Path, task: Task, record: dict) -> None:
     path = results / f"{task.key}.json"
     tmp = path.with_suffix(".tmp")
@@ -92,11 +128,45 @@ def _write(results: Path, task: Task, record: dict) -> None:
     os.replace(tmp, path)
 
 
-def pending_tasks(tasks: list[Task], results: Path, resume: bool) -> list[Task]:
-    done = {p.stem for p in results.glob("*.json")}
-    if done and not resume:
-        raise ScenarioError(f"{results.parent}: campaign output already has {len(done)} "
+def read_record(path: Path) -> dict | None:
+    """A finished run's record, or None if the file is not a complete record (truncated)."""
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    if not isinstance(record, dict) or not {"variant", "run", "seed", "status"} <= set(record):
+        return None
+    return record
+
+
+def pending_tasks(tasks: list[Task], results: Path, resume: bool,
+                  scenario_hashes: dict[str, str] | None = None) -> list[Task]:
+    """The tasks still to run. Finished records must match the task's seed and the variant's
+    scenario hash (else ScenarioError: the results belong to another campaign)."""
+    files = {p.stem: p for p in results.glob("*.json")}
+    if files and not resume:
+        raise ScenarioError(f"{results.parent}: campaign output already has {len(files)} "
                             f"finished runs (use --resume, or another --out)")
+    by_key = {t.key: t for t in tasks}
+    done = set()
+    for key, p in files.items():
+        record = read_record(p)
+        if record is None:
+            continue  # truncated: run it again
+        t = by_key.get(key)
+        if t is None:
+            continue
+        if record["seed"] != t.seed:
+            raise ScenarioError(f"{p}: recorded seed {record['seed']} differs from this "
+                                f"campaign's seed for run {t.run} ({t.seed}): another campaign "
+                                f"(use another --out)")
+        want = (scenario_hashes or {}).get(t.variant)
+        got = record.get("scenario_sha256")
+        if want and got and got != want and record["status"] == "ok":
+            raise ScenarioError(f"{p}: the run's scenario (sha256 {got[:12]}) differs from "
+                                f"variant {t.variant!r}'s ({want[:12]}): the scenario changed "
+                                f"(use another --out)")
+        done.add(key)
     return [t for t in tasks if t.key not in done]
 
 
@@ -150,14 +220,26 @@ def _iterate(tasks: list[Task], workers: int, scheduler: str | None) -> Iterable
         # one BLAS/OpenMP thread per worker process: K processes on K cores, no oversubscription
         for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ.setdefault(var, "1")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as ex:
+        with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                                 initializer=_worker_init, initargs=(os.getpid(),)) as ex:
             futures = {ex.submit(execute_run, t): t for t in tasks}
             try:
                 for f in as_completed(futures):
-                    yield futures[f], f.result()
+                    try:
+                        record = f.result()
+                    except BrokenProcessPool:
+                        t = futures[f]
+                        raise UwcosimError(
+                            f"a campaign worker process died during run {t.run} of variant "
+                            f"{t.variant!r} (crashed FMU, watchdog, or killed); finished runs "
+                            f"are kept, --resume continues") from None
+                    yield futures[f], record
             except BaseException:
-                for f in futures:
-                    f.cancel()
+                # in-flight runs are abandoned (not recorded: --resume runs them again). The
+                # pool then fails every pending future itself (cancelling them first races
+                # with that in Python 3.11: InvalidStateError in the pool's thread)
+                for proc in list((getattr(ex, "_processes", None) or {}).values()):
+                    proc.kill()
                 raise
 
 

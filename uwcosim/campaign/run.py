@@ -1,7 +1,15 @@
-"""``run_campaign``: tasks -> results/ -> runs.parquet, table.md/csv, figures, report.md."""
+"""``run_campaign``: tasks -> results/ -> runs.parquet, table.md/csv, figures, report.md.
+
+``campaign.json`` in the output directory holds the campaign's fingerprint (seed, each
+variant's scenario file, overrides and content hash) and its sha256; ``--resume`` refuses a
+directory whose fingerprint differs, naming what changed. An interrupted campaign (Ctrl-C,
+SIGTERM, SIGHUP) aggregates what finished, marks ``report.md`` partial, and raises
+:class:`~uwcosim.errors.RunInterrupted` (exit status 128 + signal).
+"""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import time
@@ -16,54 +24,132 @@ from uwcosim.campaign.aggregate import (
 )
 from uwcosim.campaign.execute import pending_tasks, run_tasks
 from uwcosim.campaign.spec import LoadedCampaign
-from uwcosim.errors import UwcosimError
+from uwcosim.errors import RunInterrupted, ScenarioError, UwcosimError
+
+MANIFEST = "campaign.json"
+
+
+def _differences(old: dict, new: dict) -> list[str]:
+    out = []
+    if old.get("seed") != new["seed"]:
+        out.append(f"seed {old.get('seed')} -> {new['seed']}")
+    ov, nv = old.get("variants", {}), new["variants"]
+    for name in sorted(set(ov) | set(nv)):
+        if name not in nv:
+            out.append(f"variant {name!r} removed")
+        elif name not in ov:
+            out.append(f"variant {name!r} added")
+        else:
+            for key, what in (("scenario", "scenario file"), ("set", "overrides"),
+                              ("scenario_sha256", "scenario content")):
+                if ov[name].get(key) != nv[name][key]:
+                    out.append(f"variant {name!r}: {what} changed")
+    return out
+
+
+def check_manifest(campaign: LoadedCampaign, out: Path, resume: bool) -> None:
+    """Refuse to resume into results of a different campaign; record the fingerprint."""
+    path = out / MANIFEST
+    new = campaign.fingerprint()
+    if path.is_file():
+        try:
+            old = json.loads(path.read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+            old = None
+        if resume:
+            if not isinstance(old, dict) or "fingerprint" not in old:
+                raise ScenarioError(f"{path}: unreadable campaign manifest: cannot check that "
+                                    f"--resume continues the same campaign (use another --out)")
+            diff = _differences(old["fingerprint"], new)
+            if diff:
+                raise ScenarioError(f"{campaign.path}: --resume into {out}: the campaign "
+                                    f"changed ({'; '.join(diff)}); use another --out")
+    elif resume and any((out / "results").glob("*.json")):
+        raise ScenarioError(f"{out}: results without a campaign manifest ({MANIFEST}): cannot "
+                            f"check that --resume continues the same campaign (use another "
+                            f"--out)")
+    tmp = path.with_name(MANIFEST + ".tmp")
+    tmp.write_text(json.dumps({"sha256": campaign.sha256, "fingerprint": new}, indent=2,
+                              sort_keys=True))
+    os.replace(tmp, path)
 
 
 def run_campaign(campaign: LoadedCampaign, out: Path, runs: int | None = None,
                  workers: int | None = None, scheduler: str | None = None,
                  resume: bool = False, figures: bool = True) -> dict:
     out = Path(out)
+    campaign.tasks(runs, out)  # refuses a bad --runs before anything is written
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UwcosimError(f"{out}: cannot create the campaign directory ({exc.strerror})"
                            ) from None
     results = out / "results"
-    results.mkdir(exist_ok=True)
     tasks = campaign.tasks(runs, out)
-    todo = pending_tasks(tasks, results, resume)
+    if workers is not None and workers < 1:
+        raise ScenarioError(f"--workers {workers}: expected a positive number of processes")
+    if resume or not any(results.glob("*.json")):
+        check_manifest(campaign, out, resume)
+    results.mkdir(exist_ok=True)
+    todo = pending_tasks(tasks, results, resume, campaign.scenario_hashes)
     shutil.copyfile(campaign.path, out / "campaign.toml")
     workers = workers if workers is not None else (os.cpu_count() or 1)
     start = time.perf_counter()
     failures = 0
+    interrupted = None
     try:
         failures = run_tasks(todo, results, workers, scheduler, total=len(tasks))
+    except (KeyboardInterrupt, RunInterrupted) as exc:
+        interrupted = exc
     finally:
         # whatever happened, what finished is aggregated
-        summary = collect(out, figures=figures)
+        summary = collect(out, figures=figures, total=len(tasks) if interrupted else None)
+    if interrupted is not None:
+        signum = getattr(interrupted, "signum", None)
+        code = 128 + signum if signum else getattr(interrupted, "exit_code", 130)
+        from uwcosim.runguard import signal_name
+
+        by = f" by {signal_name(code - 128)}" if code > 128 else ""
+        err = RunInterrupted(f"campaign interrupted{by}: {summary['runs']} of {len(tasks)} "
+                             f"runs finished in {out} (report.md marked partial; --resume "
+                             f"continues)")
+        err.exit_code = code
+        raise err
     summary["wall_time_s"] = time.perf_counter() - start
     summary["failed_runs_this_session"] = failures
     summary["workers"] = workers if not scheduler else scheduler
     return summary
 
 
-def collect(campaign_dir: Path, figures: bool = True, out: Path | None = None) -> dict:
+def collect(campaign_dir: Path, figures: bool = True, out: Path | None = None,
+            total: int | None = None) -> dict:
     """Aggregate ``campaign_dir/results`` into ``runs.parquet``, ``table.md``/``.csv`` and
-    figures, written to ``out`` (default: the campaign directory)."""
+    figures, written to ``out`` (default: the campaign directory). ``total``: the campaign was
+    interrupted with this many runs planned (report.md says partial)."""
     rows = run_rows(read_records(Path(campaign_dir) / "results"))
     out = Path(campaign_dir) if out is None else Path(out)
+    n_runs = len({(r["variant"], r["run"]) for r in rows})
+    partial = ""
+    if total is not None:
+        partial = (f"**Partial results: the campaign was interrupted** ({n_runs} of {total} "
+                   f"runs finished; `uwcosim campaign SPEC --out {campaign_dir} --resume` "
+                   f"continues it).\n\n")
     if not rows:
+        if partial:
+            (out / "report.md").write_text(f"# Campaign results (partial)\n\n{partial}")
         return {"runs": 0, "table": []}
     write_runs_parquet(rows, out / "runs.parquet")
     agg = aggregate(rows)
     md, _ = write_tables(agg, out)
+    figs = []
     if figures:
         from uwcosim.plots.campaign_figures import rmse_per_run, summary_chart
 
         figs = rmse_per_run(rows, out) + [summary_chart(rows, out)]
-        text = f"# Campaign results\n\n{md.read_text()}\n" + "".join(
-            f"![{p.stem}]({p.name})\n\n" for p in figs)
-        (out / "report.md").write_text(text)
+    title = "# Campaign results (partial)" if partial else "# Campaign results"
+    text = f"{title}\n\n{partial}{md.read_text()}\n" + "".join(
+        f"![{p.stem}]({p.name})\n\n" for p in figs)
+    (out / "report.md").write_text(text)
     failed = sorted({(r["variant"], r["run"], r["error"]) for r in rows if r["status"] != "ok"})
-    return {"runs": len({(r["variant"], r["run"]) for r in rows}), "table": agg,
+    return {"runs": n_runs, "table": agg,
             "failed": [{"variant": v, "run": i, "error": e} for v, i, e in failed]}

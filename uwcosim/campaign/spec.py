@@ -17,8 +17,10 @@ workers ran them.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -29,14 +31,16 @@ from uwcosim.scenario.load import format_validation_error, load_scenario
 
 
 class Variant(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
     name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$")
     scenario: str
     set: list[str] = []
 
 
 class CampaignSpec(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    """Strict types, as scenarios: ``seed = "1"`` is refused."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
     name: str = "campaign"
     description: str = ""
     seed: int = 0
@@ -55,6 +59,7 @@ class Task:
     run: int
     seed: int
     log_dir: str | None  # where to keep the run directory, or None
+    fail_dir: str | None = None  # where a failed run's directory is kept (when not log_dir)
 
     @property
     def key(self) -> str:
@@ -70,6 +75,21 @@ def run_seed(campaign_seed: int, run: int) -> int:
 class LoadedCampaign:
     spec: CampaignSpec
     path: Path
+    #: sha256 of each variant's scenario with its overrides (as in its run logs)
+    scenario_hashes: dict[str, str] = field(default_factory=dict)
+
+    def fingerprint(self) -> dict:
+        """What the results depend on: the campaign seed and each variant's scenario (file,
+        overrides, content hash). Not ``runs`` (more runs extend a campaign), not the labels."""
+        return {"seed": self.spec.seed, "variants": {
+            v.name: {"scenario": str(self.resolve(v.scenario)), "set": list(v.set),
+                     "scenario_sha256": self.scenario_hashes.get(v.name, "")}
+            for v in self.spec.variants}}
+
+    @property
+    def sha256(self) -> str:
+        return hashlib.sha256(json.dumps(self.fingerprint(), sort_keys=True).encode()
+                              ).hexdigest()
 
     def resolve(self, rel: str) -> Path:
         p = Path(rel)
@@ -77,11 +97,14 @@ class LoadedCampaign:
 
     def tasks(self, runs: int | None, out: Path) -> list[Task]:
         n = runs if runs is not None else self.spec.runs
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+            raise ScenarioError(f"--runs {n}: expected a positive number of runs per variant")
         out_logs = out / "logs"
         return [
             Task(v.name, str(self.resolve(v.scenario)), tuple(v.set), i,
                  run_seed(self.spec.seed, i),
-                 str(out_logs / v.name / f"run_{i:05d}") if self.spec.keep_logs else None)
+                 str(out_logs / v.name / f"run_{i:05d}") if self.spec.keep_logs else None,
+                 str(out / "failed" / v.name / f"run_{i:05d}"))
             for i in range(n) for v in self.spec.variants
         ]
 
@@ -96,6 +119,12 @@ def load_campaign(path: str | Path) -> LoadedCampaign:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{where}: invalid TOML ({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{where}: not a UTF-8 text file (byte {exc.start}: {exc.reason})"
+                            ) from None
+    except OSError as exc:
+        raise ScenarioError(f"{where}: cannot read the campaign ({exc.strerror or exc})"
+                            ) from None
     try:
         spec = CampaignSpec.model_validate(data)
     except ValidationError as exc:
@@ -108,5 +137,5 @@ def load_campaign(path: str | Path) -> LoadedCampaign:
         scen = loaded.resolve(v.scenario)
         if not scen.is_file():
             raise ScenarioError(f"{where}: key 'variants[{i}].scenario': file not found: {scen}")
-        load_scenario(scen, v.set)
+        loaded.scenario_hashes[v.name] = load_scenario(scen, v.set).sha256
     return loaded

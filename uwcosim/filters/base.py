@@ -95,6 +95,8 @@ class Estimator(ABC):
             return cls(model, x0, P0, **settings)
         except (TypeError, ValueError) as exc:
             raise ScenarioError(f"{where}: {exc}") from None
+        except MemoryError:
+            raise ScenarioError(f"{where}: not enough memory for these settings") from None
 
 
 ESTIMATORS: Registry[type[Estimator]] = Registry("estimator")

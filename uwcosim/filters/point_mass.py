@@ -190,6 +190,10 @@ def shift_blur(values: np.ndarray, spacing, coords: list[np.ndarray], D: np.ndar
     return out
 
 
+#: largest grid memory (bytes) a point-mass filter may ask for
+MAX_GRID_BYTES = 4 * 2**30
+
+
 @register("point_mass")
 class PointMassFilter(Estimator):
     """Grid (point-mass) Bayes filter with a grid re-centred on the support every step."""
@@ -214,6 +218,10 @@ class PointMassFilter(Estimator):
         self.n_points = [int(v) for v in np.broadcast_to(np.asarray(n_points), (n,))]
         if min(self.n_points) < 5 or not span > 0:
             raise ValueError("n_points must be >= 5 and span > 0")
+        need = float(np.prod(np.asarray(self.n_points, dtype=float))) * 8.0 * (2 * n + 6)
+        if need > MAX_GRID_BYTES:  # the grid, its mesh and work arrays
+            raise ValueError(f"n_points {self.n_points} needs about {need / 2**30:.3g} GiB "
+                             f"(limit {MAX_GRID_BYTES / 2**30:g} GiB): use fewer points")
         self.span = float(span)
         self._unit = [np.linspace(-1.0, 1.0, m) for m in self.n_points]
         self._ip, self._ik = block_index(p), block_index(self.part.k)

@@ -6,9 +6,10 @@ steps: ``t = t0 + k*h``, never accumulated. Each FMU runs at an integer multiple
 ``h``; FMUs are stepped Gauss-Seidel in dependency order. Signals live in one flat float64
 array, the *bus*: every FMU output and every source has a slot, and each FMU input reads a slot.
 Integer and Boolean values travel on the bus as float64 (exact up to 2**53); String outputs
-have a slot (NaN) and their text in :attr:`Master.text`. Sources (controls, noise) are
-pre-sampled for the whole run from the master's seeded streams; closed-loop sources
-(waypoints) are evaluated per step.
+have a slot (NaN) and their text in :attr:`Master.text`. Sources (controls, noise, sensor
+sampling and losses) are sampled from the master's seeded streams in chunks as the run goes
+(memory does not depend on the duration); closed-loop sources (waypoints) are evaluated per
+step.
 
 An FMU that asks to stop (FMI 2 ``fmi2Terminated``, FMI 3 ``terminateSimulation``) ends the run:
 :attr:`Master.terminated` holds who, when and why, and :meth:`Master.run_until` returns (or,
@@ -118,6 +119,9 @@ class Master:
         self.master_time_s = 0.0
         self.terminated: Termination | None = None
         self._initialized = False
+        #: the FMU call in progress: (fmu, call, t, time.monotonic() at its start), or None
+        #: (read by the run-wide watchdog, uwcosim.runguard)
+        self.busy: tuple[str, str, float, float] | None = None
         self.adapters: dict[str, FMUAdapter] = {}
         #: the unzipped FMU archives, deleted by close() (or at process exit)
         self.unzip_root = tempfile.mkdtemp(prefix="uwcosim_fmu_")
@@ -323,7 +327,7 @@ class Master:
         return StageInputs(pairs) if pairs else None
 
     def _sample_sources(self) -> None:
-        self.source_table, self.source_slots, self.dynamic = sample_sources(
+        self.sources, self.source_slots, self.dynamic = sample_sources(
             self.system, self.controls, self.slots, self.seed, self.n_steps + 1,
             skip=self.noise_free)
 
@@ -396,10 +400,13 @@ class Master:
             self._set_text(node)
             node.gather(self.bus)
             start = {**f.start, **self._input_values(node)}  # driven inputs: their driver
+            self.busy = (name, "instantiate", self.t0, time.monotonic())
             try:
                 node.adapter.instantiate(params, start, self.t0, t_stop)
             except FMUError as exc:
                 raise FMUError(f"{exc} [{self._where(f'fmus.{name}')}]") from None
+            finally:
+                self.busy = None
             node.adapter.set_inputs(node.inputs, self.t0)
             self._read(node, self.t0)
         self._initialized = True
@@ -416,7 +423,7 @@ class Master:
             raise FMUError(f"{self.terminated.message()} (run.stop_on_terminate = \"error\")")
 
     def _load_sources(self, k: int) -> None:
-        self.bus[self.source_slots] = self.source_table[k]
+        self.bus[self.source_slots] = self.sources.row(k)
         for slot, ctl in self.dynamic:
             x, y = self.bus[ctl.pos_slots]
             self.bus[slot] = ctl.value_at(x, y)
@@ -485,7 +492,11 @@ class Master:
             # the step is the difference of two grid times (as fmpy's loop does), so the FMU
             # lands on t_{k+1} without accumulating rounding
             t_start = self.t0 + (k + 1 - p) * self.h
-            t_reached = ad.do_step(t_start, t_next - t_start, node.inputs, node.input_fn)
+            self.busy = (ad.name, "doStep", t_start, time.monotonic())
+            try:
+                t_reached = ad.do_step(t_start, t_next - t_start, node.inputs, node.input_fn)
+            finally:
+                self.busy = None
             stop = ad.terminated
             if stop is not None:
                 t_reached = stop[0]

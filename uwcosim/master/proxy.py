@@ -12,6 +12,12 @@ crashes (segmentation fault in the FMU) is reported the same way instead of taki
 The proxy keeps a description-only adapter (model description and variable map; the FMU's
 library is not loaded in this process) for names, causalities and the connection graph.
 Pipes with ``multiprocessing.connection.Connection`` on file descriptors: POSIX only.
+
+Life cycle: a worker dies with its parent (Linux ``prctl(PR_SET_PDEATHSIG, SIGKILL)``, set by the
+worker itself, which also exits at once if the parent is already gone) and ignores SIGINT,
+SIGTERM and SIGHUP (the master decides, and closes or kills it). A wait for an answer is
+polled in slices of 50 ms, so a stop request (Ctrl-C, SIGTERM: :mod:`uwcosim.runguard`) ends it
+at once instead of after ``timeout_s``; the worker is then killed.
 """
 
 from __future__ import annotations
@@ -19,24 +25,55 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import time
 import weakref
 from multiprocessing.connection import Connection
 from pathlib import Path
 
 import numpy as np
 
-from uwcosim.errors import FMUError, ScenarioError
+from uwcosim import runguard
+from uwcosim.errors import FMUError, RunInterrupted, ScenarioError
 from uwcosim.master.adapter import Binding, FMUAdapter
 
 #: seconds allowed for the worker to start (imports) before the first FMU call
 STARTUP_S = 60.0
+#: an answer is awaited in slices of this many seconds (a stop request is seen between them)
+_SLICE_S = 0.05
 _ERRORS = {"FMUError": FMUError, "ScenarioError": ScenarioError}
+_LIVE: set[subprocess.Popen] = set()  # running workers of this process
 
 
 def _kill(proc: subprocess.Popen) -> None:
     if proc.poll() is None:
         proc.kill()
     proc.wait()
+    _LIVE.discard(proc)
+
+
+def kill_workers() -> None:
+    """Kill every worker of this process now (the process is about to end)."""
+    for proc in list(_LIVE):
+        try:
+            proc.kill()
+        except OSError:
+            pass
+
+
+def die_with_parent(parent: int | None = None) -> None:
+    """Have this process killed when its parent ends (Linux; elsewhere a no-op). ``parent``:
+    the pid the parent had; if it is already gone, exit now."""
+    import ctypes
+    import signal
+
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+    if parent is not None and os.getppid() != parent:
+        os._exit(1)
 
 
 class ProxyAdapter:
@@ -114,8 +151,10 @@ class ProxyAdapter:
         env["PYTHONPATH"] = os.pathsep.join([root, *filter(None, [env.get("PYTHONPATH")])])
         try:
             self._proc = subprocess.Popen(
-                [sys.executable, "-m", "uwcosim.master.proxy", str(req_r), str(resp_w)],
+                [sys.executable, "-m", "uwcosim.master.proxy", str(req_r), str(resp_w),
+                 str(os.getpid())],
                 pass_fds=(req_r, resp_w), stdin=subprocess.DEVNULL, env=env)
+            _LIVE.add(self._proc)
         finally:
             os.close(req_r)
             os.close(resp_w)
@@ -130,7 +169,7 @@ class ProxyAdapter:
                            f"({what} at t={t:g})")
         try:
             self._req.send(request)
-            ready = self._resp.poll(self.timeout_s if limit is None else limit)
+            ready = self._wait(self.timeout_s if limit is None else limit, what, t)
             answer = self._resp.recv() if ready else None
         except (EOFError, OSError, BrokenPipeError):
             rc = self._proc.wait()
@@ -147,6 +186,20 @@ class ProxyAdapter:
             raise cls(answer[2] if answer[1] in _ERRORS else
                       f"FMU '{self.name}': {what} failed at t={t:g} ({answer[1]}: {answer[2]})")
         return answer[1]
+
+    def _wait(self, limit: float, what: str, t: float) -> bool:
+        """Wait up to ``limit`` s for an answer; a stop request kills the worker at once."""
+        deadline = time.monotonic() + limit
+        while True:
+            left = deadline - time.monotonic()
+            if self._resp.poll(max(0.0, min(_SLICE_S, left))):
+                return True
+            if runguard.stop_requested():
+                self._stop()
+                raise RunInterrupted(f"interrupted during {what} of FMU '{self.name}' at "
+                                     f"t={t:g} (worker process killed)")
+            if left <= 0:
+                return False
 
     def _stop(self) -> None:
         proc, self._proc = self._proc, None
@@ -214,6 +267,9 @@ class ProxyAdapter:
     def close(self) -> None:
         if self._proc is None:
             return
+        if runguard.stop_requested():  # interrupted: no polite terminate
+            self._stop()
+            return
         try:
             self._call("terminate", 0.0, ("close",))
         except FMUError:
@@ -275,9 +331,12 @@ def _serve(req: Connection, resp: Connection) -> None:
 def main(argv: list[str] | None = None) -> int:
     import signal
 
-    # Ctrl-C reaches the whole process group: the master decides, and closes or kills us
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # Ctrl-C reaches the whole process group: the master decides, and closes or kills us;
+    # if the master dies, so do we
+    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(s, signal.SIG_IGN)
     argv = sys.argv[1:] if argv is None else argv
+    die_with_parent(int(argv[2]) if len(argv) > 2 else None)
     req = Connection(int(argv[0]), writable=False)
     resp = Connection(int(argv[1]), readable=False)
     try:

@@ -3,12 +3,19 @@
 All randomness comes from :func:`stream`, one independent ``numpy.random.Generator`` per named
 purpose derived from the run seed, so adding a sensor does not change another sensor's noise,
 and the same scenario and seed always give the same samples.
+
+Samples are drawn in chunks of :data:`CHUNK_STEPS` steps as the run goes (:class:`ChunkedTable`),
+so memory does not depend on the run's duration. Each stream is drawn in the same order as one
+draw for the whole run would be (``standard_normal`` and ``random`` fill their output in order;
+the Gilbert-Elliott switch draws, which followed all ``n`` loss draws, come from a copy of the
+stream advanced by ``n``), so a run's samples do not depend on the chunk size.
 """
 
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -78,6 +85,89 @@ class WaypointHeading:
         return self.last if self.last is not None else 0.0
 
 
+#: steps of samples held in memory per source table
+CHUNK_STEPS = 65_536
+
+#: ``draw(k0, m)``: samples of steps ``k0 .. k0+m-1`` as ``[m, width]``; called for consecutive
+#: chunks from ``k0 = 0``
+Drawer = Callable[[int, int], np.ndarray]
+
+
+class ChunkedTable:
+    """Rows ``0 .. n-1`` of sampled sources, generated one chunk at a time.
+
+    ``makers``: functions returning a fresh drawer (from the start of its stream). Rows are
+    read in increasing order (a jump back restarts the streams and draws up to that row)."""
+
+    def __init__(self, n: int, makers: list[Callable[[], Drawer]], width: int,
+                 dtype=float, chunk: int | None = None) -> None:
+        self.n, self.makers, self.width, self.dtype = int(n), makers, width, dtype
+        self.chunk = int(CHUNK_STEPS if chunk is None else chunk)
+        self._restart()
+
+    def _restart(self) -> None:
+        self._drawers = [m() for m in self.makers]
+        self.k0 = 0
+        self.rows = np.zeros((0, self.width), dtype=self.dtype)
+
+    def _next(self) -> None:
+        k0 = self.k0 + len(self.rows)
+        m = min(self.chunk, self.n - k0)
+        if m <= 0:
+            raise IndexError(f"step {k0} is beyond the run's {self.n} samples")
+        cols = [np.asarray(d(k0, m), dtype=self.dtype).reshape(m, -1) for d in self._drawers]
+        self.rows = np.hstack(cols) if cols else np.zeros((m, 0), dtype=self.dtype)
+        self.k0 = k0
+
+    def row(self, k: int) -> np.ndarray:
+        """Row ``k`` (a view: copy it to keep it)."""
+        if k < self.k0:
+            self._restart()
+        while k >= self.k0 + len(self.rows):
+            self._next()
+        return self.rows[k - self.k0]
+
+
+def noise_drawer(rng: np.random.Generator, psd, h: float) -> Drawer:
+    scale = np.sqrt(np.asarray(psd, dtype=float) / h)
+    return lambda k0, m: rng.standard_normal((m, scale.size)) * scale
+
+
+def gaussian_drawer(rng: np.random.Generator, sigma) -> Drawer:
+    sigma = np.asarray(sigma, dtype=float)
+    return lambda k0, m: rng.standard_normal((m, sigma.size)) * sigma
+
+
+def loss_drawer(rng: np.random.Generator, n: int,
+                spec: BernoulliLoss | GilbertElliottLoss | None) -> Drawer:
+    """Chunks of :func:`loss_mask` ``(rng, n, spec)``, drawn as the run goes."""
+    if spec is None:
+        return lambda k0, m: np.ones(m, dtype=bool)
+    if isinstance(spec, BernoulliLoss):
+        return lambda k0, m: rng.random(m) >= spec.p
+    bits = type(rng.bit_generator)()
+    bits.state = rng.bit_generator.state
+    bits.advance(n)  # the switch draws followed the n loss draws
+    switch_rng = np.random.Generator(bits)
+    state = [False]
+
+    def draw(k0: int, m: int) -> np.ndarray:
+        u = rng.random(m)
+        switch = switch_rng.random(m)
+        bad = np.empty(m, dtype=bool)
+        st = state[0]
+        for i in range(m):
+            bad[i] = st
+            if st:
+                st = switch[i] >= spec.p_bad_to_good
+            else:
+                st = switch[i] < spec.p_good_to_bad
+        state[0] = st
+        return u >= np.where(bad, spec.loss_bad, spec.loss_good)
+
+    return draw
+
+
 def white_noise(rng: np.random.Generator, n_steps: int, psd, h: float) -> np.ndarray:
     """Held white-noise samples ``[n_steps, n]`` of variance ``psd / h`` (PSD held over h)."""
     psd = np.asarray(psd, dtype=float)
@@ -98,22 +188,7 @@ def loss_mask(
     Markov chain (good/bad) with transition probabilities ``p_good_to_bad``,
     ``p_bad_to_good`` and loss probabilities ``loss_good``, ``loss_bad`` per state (bursts).
     """
-    if spec is None:
-        return np.ones(n, dtype=bool)
-    u = rng.random(n)
-    if isinstance(spec, BernoulliLoss):
-        return u >= spec.p
-    switch = rng.random(n)
-    bad = np.empty(n, dtype=bool)
-    state = False
-    for i in range(n):
-        bad[i] = state
-        if state:
-            state = switch[i] >= spec.p_bad_to_good
-        else:
-            state = switch[i] < spec.p_good_to_bad
-    p_loss = np.where(bad, spec.loss_bad, spec.loss_good)
-    return u >= p_loss
+    return loss_drawer(rng, n, spec)(0, n)
 
 
 def control_problem(c: ControlSpec, var) -> str | None:
@@ -157,43 +232,59 @@ class Sensor:
     outputs: list[str]
     slots: np.ndarray
     period: int
-    received: np.ndarray  # [n_steps + 1] bool: sampled and not lost at step k
-    sampled: np.ndarray = field(default=None)
+    mask: ChunkedTable  # column 0: sampled and not lost at step k
+
+    def received_at(self, k: int) -> bool:
+        """Sampled and not lost at step ``k`` (steps are read in increasing order)."""
+        return bool(self.mask.row(k)[0])
+
+    def sampled_at(self, k: int) -> bool:
+        return k > 0 and k % self.period == 0
 
 
 def sample_sources(system, controls: dict, slots: dict[str, int], seed: int, n: int,
                    skip=()):
-    """The open-loop sources of ``system`` sampled on the ``n`` grid points, from the seed's
-    streams: ``(table [n, m], bus slots [m], [(slot, closed-loop control)])``. Noise sources
-    named in ``skip`` are left out (a truth FMU without their inputs)."""
-    times = system.start_time + system.step * np.arange(n)
-    cols, where = [], []
+    """The open-loop sources of ``system`` on the ``n`` grid points, drawn in chunks from the
+    seed's streams: ``(ChunkedTable [n, m], bus slots [m], [(slot, closed-loop control)])``.
+    Noise sources named in ``skip`` are left out (a truth FMU without their inputs)."""
+    t0, h = system.start_time, system.step
+    makers, where = [], []
     for cname, ctl in controls.items():
         if isinstance(ctl, TableControl):
-            cols.append(ctl.samples(times)[:, None])
+            makers.append(lambda ctl=ctl: lambda k0, m: ctl.samples(
+                t0 + h * np.arange(k0, k0 + m))[:, None])
             where.append([slots[f"controls.{cname}"]])
     for nname, nz in system.noise.items():
         if nname in skip:
             continue
-        cols.append(white_noise(stream(seed, f"noise:{nname}"), n, nz.psd, system.step))
+        makers.append(lambda nname=nname, nz=nz: noise_drawer(
+            stream(seed, f"noise:{nname}"), nz.psd, h))
         where.append([slots[f"noise.{nname}.{i}"] for i in range(len(nz.targets))])
     for sname, s in system.sensors.items():
         if s.noise_inputs:
-            cols.append(gaussian(stream(seed, f"sensor-noise:{sname}"), n, s.sigma))
+            makers.append(lambda sname=sname, s=s: gaussian_drawer(
+                stream(seed, f"sensor-noise:{sname}"), s.sigma))
             where.append([slots[f"sensornoise.{sname}.{i}"] for i in range(len(s.noise_inputs))])
-    table = np.hstack(cols) if cols else np.zeros((n, 0))
     flat = np.array([s for group in where for s in group], dtype=np.intp)
     dynamic = [(slots[f"controls.{c}"], ctl) for c, ctl in controls.items()
                if not isinstance(ctl, TableControl)]
-    return table, flat, dynamic
+    return ChunkedTable(n, makers, len(flat)), flat, dynamic
 
 
 def build_sensors(system, slots: dict[str, np.ndarray], seed: int, n: int) -> dict[str, Sensor]:
-    """The sensors of ``system`` with their sampling and (seeded) loss over ``n`` grid points."""
+    """The sensors of ``system`` with their sampling and (seeded) loss over ``n`` grid points,
+    drawn in chunks as the run goes."""
     out = {}
-    k = np.arange(n)
     for sname, s in system.sensors.items():
-        sampled = (k % s.period == 0) & (k > 0)
-        received = sampled & loss_mask(stream(seed, f"loss:{sname}"), n, s.loss)
-        out[sname] = Sensor(sname, list(s.outputs), slots[sname], s.period, received, sampled)
+
+        def maker(sname=sname, s=s):
+            lost = loss_drawer(stream(seed, f"loss:{sname}"), n, s.loss)
+
+            def draw(k0: int, m: int) -> np.ndarray:
+                k = np.arange(k0, k0 + m)
+                return ((k % s.period == 0) & (k > 0)) & lost(k0, m)
+            return draw
+
+        out[sname] = Sensor(sname, list(s.outputs), slots[sname], s.period,
+                            ChunkedTable(n, [maker], 1, dtype=bool))
     return out

@@ -264,7 +264,13 @@ def load_map(path: str | Path, variable: str | None = None) -> Bathymetry:
         raise
     except Exception as exc:  # noqa: BLE001 - any reader failure is a bad file
         raise MapError(f"{path}: cannot read map ({exc})") from None
-    return _bathymetry_from_arrays(arrays, variable, str(path))
+    try:
+        return _bathymetry_from_arrays(arrays, variable, str(path))
+    except MapError as exc:  # name the file in every message
+        msg = str(exc)
+        raise MapError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
+    except (ValueError, TypeError) as exc:
+        raise MapError(f"{path}: map arrays are not numeric ({exc})") from None
 
 
 def _read_netcdf(path: Path) -> dict[str, np.ndarray]:

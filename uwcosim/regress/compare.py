@@ -66,6 +66,7 @@ class RegressionReport:
     missing: list[str] = field(default_factory=list)  # in the baseline, not in the run
     extra: list[str] = field(default_factory=list)  # in the run, not in the baseline (ignored)
     time_problem: str = ""
+    warnings: list[str] = field(default_factory=list)  # e.g. the scenario hashes differ
     n_samples: int = 0
     t_range: tuple[float, float] = (0.0, 0.0)
     plots: list[Path] = field(default_factory=list)
@@ -83,6 +84,7 @@ class RegressionReport:
                  f"  {self.n_samples} samples, t = {self.t_range[0]:g} .. {self.t_range[1]:g} "
                  f"s; {len(self.results)} signals (rtol {self.rtol:g}, atol {self.atol:g}, "
                  f"ttol {self.ttol:g} s)"]
+        lines += [f"  warning: {w}" for w in self.warnings]
         if self.time_problem:
             lines.append(f"  FAILED time: {self.time_problem}")
         for name in self.missing:
@@ -113,14 +115,21 @@ class RegressionReport:
         return "\n".join(lines)
 
 
-def log_file(path: str | Path) -> Path:
-    """``log.parquet`` of a run directory, or the file itself."""
+def log_file(path: str | Path, what: str = "run log") -> Path:
+    """``log.parquet`` of a run directory, or the file itself (``what`` names it in errors)."""
     p = Path(path)
     if p.is_dir():
         p = p / "log.parquet"
     if not p.is_file():
-        raise RegressionInputError(f"{p}: run log not found")
+        raise RegressionInputError(f"{p}: {what} not found")
     return p
+
+
+def check_tolerances(rtol: float, atol: float, ttol: float) -> None:
+    """Refuse a NaN, infinite or negative tolerance: a NaN band would let anything pass."""
+    for name, v in (("rtol", rtol), ("atol", atol), ("ttol", ttol)):
+        if not (np.isfinite(v) and v >= 0):
+            raise RegressionInputError(f"--{name} {v}: a tolerance must be a finite number >= 0")
 
 
 def read_columns(path: Path) -> tuple[dict[str, np.ndarray], dict]:
@@ -135,6 +144,11 @@ def read_columns(path: Path) -> tuple[dict[str, np.ndarray], dict]:
     t = np.asarray(cols["time"], float)
     if t.size == 0:
         raise RegressionInputError(f"{path}: the log has no rows")
+    for name, v in cols.items():
+        kind = np.asarray(v).dtype.kind
+        if kind not in "fiub":
+            raise RegressionInputError(f"{path}: column {name!r} is not numeric or boolean "
+                                       f"(dtype {np.asarray(v).dtype}); not a uwcosim run log")
     if np.any(np.diff(t) < 0) or not np.all(np.isfinite(t)):
         raise RegressionInputError(f"{path}: 'time' is not finite and non-decreasing")
     return cols, meta
@@ -189,7 +203,10 @@ def compare_signal(name: str, t_ref, y_ref, t, y, rtol: float, atol: float,
     nan = np.isnan(yy)
     out = (nan & ~has_nan) | (~nan & ~has_finite)
     inside = ~nan & has_finite
-    out[inside] |= (yy[inside] < lo[inside] - tol) | (yy[inside] > hi[inside] + tol)
+    # written so that any NaN (in the band or the tolerance) fails: a comparison with NaN is
+    # False, so "not inside" is True
+    y_in = yy[inside]
+    out[inside] |= ~((y_in >= lo[inside] - tol) & (y_in <= hi[inside] + tol))
     ref_at = np.interp(t, t_ref, yr) if yr.size > 1 else np.full(t.size, yr[0])
     near_nan = np.isnan(ref_at)
     ref_at[near_nan] = (lo[near_nan] + hi[near_nan]) / 2
@@ -223,12 +240,10 @@ def compare_logs(run: str | Path, baseline: str | Path, rtol: float = DEFAULT_RT
     Raises :class:`RegressionInputError` for bad input; returns the report otherwise, and
     writes one diff plot per failing signal into ``plot_dir`` when given.
     """
-    if rtol < 0 or atol < 0 or ttol < 0:
-        raise RegressionInputError(f"tolerances must be >= 0 (rtol {rtol}, atol {atol}, "
-                                   f"ttol {ttol})")
-    run_p, base_p = log_file(run), log_file(baseline)
-    cols, _ = read_columns(run_p)
-    ref, _ = read_columns(base_p)
+    check_tolerances(rtol, atol, ttol)
+    run_p, base_p = log_file(run), log_file(baseline, "baseline")
+    cols, meta = read_columns(run_p)
+    ref, ref_meta = read_columns(base_p)
     wanted = select_signals(list(ref), signals)
     common = [n for n in wanted if n in cols]
     if not common:
@@ -243,6 +258,11 @@ def compare_logs(run: str | Path, baseline: str | Path, rtol: float = DEFAULT_RT
                            missing=[n for n in wanted if n not in cols],
                            extra=[n for n in select_signals(list(cols), signals)
                                   if n not in ref])
+    h_run, h_ref = meta.get("scenario_sha256"), ref_meta.get("scenario_sha256")
+    if h_run and h_ref and h_run != h_ref:
+        rep.warnings.append(f"the run's scenario (sha256 {h_run[:12]}, "
+                            f"{meta.get('scenario_path', '?')}) differs from the baseline's "
+                            f"({h_ref[:12]}, {ref_meta.get('scenario_path', '?')})")
     eps = ttol + 1e-9 * max(1.0, abs(t_ref[-1]))
     if t[0] > t_ref[0] + eps or t[-1] < t_ref[-1] - eps:
         rep.time_problem = (f"the run covers t = {t[0]:g} .. {t[-1]:g} s, the baseline "
@@ -259,6 +279,11 @@ def compare_logs(run: str | Path, baseline: str | Path, rtol: float = DEFAULT_RT
         from uwcosim.regress.plots import diff_plot
 
         out = Path(plot_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        rep.plots = [diff_plot(r, data[r.name], out) for r in rep.failures]
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            rep.plots = [diff_plot(r, data[r.name], out) for r in rep.failures]
+        except OSError as exc:
+            raise RegressionInputError(f"{out}: cannot write the diff plots "
+                                       f"({exc.strerror or exc}); use --plots DIR or --no-plots"
+                                       ) from None
     return rep

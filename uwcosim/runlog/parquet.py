@@ -3,15 +3,25 @@
 Columns are float64 unless given another numpy dtype (Integer, Boolean, Float32 and String
 outputs of FMUs get the matching Arrow type). Rows are buffered in numpy arrays and written as
 one row group per chunk, so an interrupted or failed run leaves a readable file with every
-chunk written so far (:meth:`RunLogger.close` is called from a ``finally``). The file's
-key-value metadata ``uwcosim`` holds the scenario text and hash, the seed, package versions and
-the FMUs' sha256; nothing time-of-day dependent is stored, so the same scenario and seed give a
-byte-identical log.
+chunk written so far (:meth:`RunLogger.close` is called from a ``finally``, or by the signal
+watcher of :mod:`uwcosim.runguard`; the writer is lock-protected for that).
+
+A process killed outright (``kill -9``, power loss of the process) never writes the Parquet
+footer, so ``log.parquet`` is then unreadable. Each row group is therefore also appended to a
+side file ``log.parquet.journal`` (an Arrow IPC stream, written unbuffered when the row group
+is): :func:`read_log` falls back to it and returns every finished row group, and
+:func:`recover_log` rewrites a proper ``log.parquet`` from it. A clean close removes it.
+
+The file's key-value metadata ``uwcosim`` holds the scenario text and hash, the seed, package
+versions and the FMUs' sha256; nothing time-of-day dependent is stored, so the same scenario
+and seed give a byte-identical log.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -52,11 +62,17 @@ class RunLogger:
         self._b = np.zeros((self.chunk, len(self.bool_columns)), dtype=bool)
         self._n = 0
         self.rows_written = 0
+        self.last_time = float("nan")  # time of the last appended row
+        self._lock = threading.Lock()
+        self.journal_path = journal_path(self.path)
+        self._journal = self._journal_file = None
         fields = [pa.field(c, arrow_type(self.dtypes.get(c, np.float64))) for c in self.columns]
         fields += [pa.field(c, pa.bool_()) for c in self.bool_columns]
         self.schema = pa.schema(fields, metadata={"uwcosim": json.dumps(metadata, sort_keys=True)})
         try:
             self._writer = pq.ParquetWriter(self.path, self.schema, compression="zstd")
+            self._journal_file = open(self.journal_path, "wb", buffering=0)  # noqa: SIM115
+            self._journal = pa.ipc.new_stream(self._journal_file, self.schema)
         except OSError as exc:
             raise UwcosimError(f"{self.path}: cannot write the run log ({exc.strerror or exc})"
                                ) from None
@@ -64,15 +80,23 @@ class RunLogger:
     def append(self, values: np.ndarray, flags: np.ndarray, exact=()) -> None:
         """Append one row: ``values`` in ``columns`` order (time first), ``flags`` booleans,
         ``exact`` the values of :attr:`exact_columns`."""
-        self._f[self._n] = values
-        self._b[self._n] = flags
-        for store, v in zip(self._e, exact):
-            store.append(v)
-        self._n += 1
-        if self._n == self.chunk:
-            self.flush()
+        with self._lock:
+            if self._writer is None:  # closed by the signal watcher
+                return
+            self._f[self._n] = values
+            self._b[self._n] = flags
+            for store, v in zip(self._e, exact):
+                store.append(v)
+            self._n += 1
+            self.last_time = float(values[0])
+            if self._n == self.chunk:
+                self._flush()
 
     def flush(self) -> None:
+        with self._lock:
+            self._flush()
+
+    def _flush(self) -> None:
         if not self._n or self._writer is None:
             return
         n = self._n
@@ -88,30 +112,78 @@ class RunLogger:
                 arrays.append(pa.array(self._f[:n, i]))
         arrays += [pa.array(self._b[:n, i]) for i in range(len(self.bool_columns))]
         self._e = [[] for _ in self.exact_columns]
-        self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
+        table = pa.Table.from_arrays(arrays, schema=self.schema)
+        self._writer.write_table(table)
+        self._journal.write_table(table)
         self.rows_written += n
         self._n = 0
         self._f[:] = np.nan
 
     def close(self) -> None:
-        if self._writer is None:
-            return
+        with self._lock:
+            if self._writer is None:
+                return
+            try:
+                self._flush()
+            finally:
+                self._writer.close()
+                self._writer = None
+                self._journal.close()
+                self._journal_file.close()
+                os.unlink(self.journal_path)
+
+
+def journal_path(path: str | Path) -> Path:
+    """The side file that keeps the finished row groups of ``path`` until it is closed."""
+    path = Path(path)
+    return path.with_name(path.name + ".journal")
+
+
+def read_journal(path: str | Path) -> pa.Table:
+    """Every complete row group of a journal (a torn last message is dropped)."""
+    batches, schema = [], None
+    with open(path, "rb") as f:
         try:
-            self.flush()
-        finally:
-            self._writer.close()
-            self._writer = None
+            reader = pa.ipc.open_stream(f)
+            schema = reader.schema
+            while True:
+                try:
+                    batches.append(reader.read_next_batch())
+                except StopIteration:
+                    break
+        except (pa.ArrowInvalid, OSError):
+            pass  # torn tail
+    if schema is None:
+        raise UwcosimError(f"{path}: journal has no complete schema")
+    return pa.Table.from_batches(batches, schema=schema)
+
+
+def _read_table(path: Path) -> pa.Table:
+    try:
+        return pq.read_table(path)
+    except Exception as exc:  # noqa: BLE001 - pyarrow raises several types for bad files
+        journal = journal_path(path)
+        if journal.is_file():  # the writer was killed before it wrote the footer
+            return read_journal(journal)
+        raise UwcosimError(f"{path}: not a readable Parquet run log ({exc})") from None
+
+
+def recover_log(path: str | Path) -> int:
+    """Rewrite ``path`` from its journal after the writer was killed; returns the rows kept."""
+    path = Path(path)
+    table = read_journal(journal_path(path))
+    pq.write_table(table, path, compression="zstd")
+    os.unlink(journal_path(path))
+    return table.num_rows
 
 
 def read_log(path: str | Path) -> tuple[dict[str, np.ndarray], dict]:
-    """Read a run log: ``(columns as numpy arrays, metadata dict)``."""
+    """Read a run log: ``(columns as numpy arrays, metadata dict)``. A log whose writer was
+    killed (no Parquet footer) is read from its journal: every finished row group."""
     path = Path(path)
     if not path.is_file():
         raise UwcosimError(f"{path}: run log not found")
-    try:
-        table = pq.read_table(path)
-    except Exception as exc:  # noqa: BLE001 - pyarrow raises several types for bad files
-        raise UwcosimError(f"{path}: not a readable Parquet run log ({exc})") from None
+    table = _read_table(path)
     meta = table.schema.metadata or {}
     info = json.loads(meta.get(b"uwcosim", b"{}"))
     return {name: table.column(name).to_numpy() for name in table.column_names}, info

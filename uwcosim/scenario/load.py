@@ -166,7 +166,14 @@ def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
         return load_ssp(path, overrides)
     if not path.is_file():
         raise ScenarioError(f"{where}: scenario file not found")
-    text = path.read_text(encoding="utf-8")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{where}: not a UTF-8 text file (byte {exc.start}: {exc.reason})"
+                            ) from None
+    except OSError as exc:
+        raise ScenarioError(f"{where}: cannot read the scenario ({exc.strerror or exc})"
+                            ) from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -14,45 +14,68 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    StrictBool,
+    StrictFloat,
+    StrictInt,
+    StrictStr,
     ValidationError,
     field_validator,
     model_validator,
 )
 
-Scalar = float | int | bool | str
+# Strict types: a TOML string is never taken for a number ("50" is refused for a duration),
+# a float never for an integer; an integer is a valid float. NaN and infinity are refused
+# everywhere (``allow_inf_nan=False``).
+Float, Int, Bool, Str = StrictFloat, StrictInt, StrictBool, StrictStr
+Scalar = StrictFloat | StrictInt | StrictBool | StrictStr
 #: a start value or parameter: any FMI scalar as TOML gives it, or an array (FMI 3 arrays)
-Value = Scalar | list[float | int | bool]
-PositiveFloat = Annotated[float, Field(gt=0)]
-PositiveInt = Annotated[int, Field(ge=1)]
-Probability = Annotated[float, Field(ge=0.0, le=1.0)]
+Value = Scalar | list[StrictFloat | StrictInt | StrictBool]
+PositiveFloat = Annotated[StrictFloat, Field(gt=0)]
+NonNegativeFloat = Annotated[StrictFloat, Field(ge=0)]
+PositiveInt = Annotated[StrictInt, Field(ge=1)]
+Probability = Annotated[StrictFloat, Field(ge=0.0, le=1.0)]
+#: more steps than this cannot be represented as ``t0 + k*h`` to the step (2**53 / 1000)
+MAX_STEPS = 9_000_000_000_000
+#: largest synthetic map grid (cells)
+MAX_MAP_CELLS = 50_000_000
 
 
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class RunSpec(Strict):
     duration: PositiveFloat
     step: PositiveFloat
-    start_time: float = 0.0
-    seed: int = 0
+    start_time: Float = 0.0
+    seed: Int = 0
     #: an FMU's request to stop ends the run with status "terminated" (exit 0) or, with
     #: "error", as a failure (exit 3)
     stop_on_terminate: Literal["stop", "error"] = "stop"
+    #: run-wide watchdog (s): an FMU call lasting longer ends the run (failed, log kept)
+    fmu_timeout_s: PositiveFloat | None = None
+
+    @model_validator(mode="after")
+    def _steps(self) -> RunSpec:
+        n = self.duration / self.step
+        if not n <= MAX_STEPS:
+            raise ValueError(f"'duration' / 'step' = {n:.3g} steps, more than {MAX_STEPS:.0e} "
+                             f"(time t0 + k*step would lose precision)")
+        return self
 
 
 class FMUSpec(Strict):
-    path: str
+    path: Str
     interface: Literal["cs", "me"] = "cs"
     solver: Literal["rk4", "adaptive"] = "rk4"
     substeps: PositiveInt = 1
     period: PositiveInt = 1
     rtol: PositiveFloat = 1e-8
-    parameters: dict[str, Value] = {}
-    start: dict[str, Value] = {}
+    parameters: dict[Str, Value] = {}
+    start: dict[Str, Value] = {}
     #: roles -> FMU variables with unit conversion (a TOML file name or an inline table;
     #: see :mod:`uwcosim.master.varmap`); start values may then use the role names
-    map: str | dict[str, str | dict[str, Scalar]] | None = None
+    map: Str | dict[Str, Str | dict[Str, Scalar]] | None = None
     #: role table the map is checked against (default: the FMU's name if it is a role)
     role: Literal["vehicle"] | None = None
     #: per-call time limit (s): the FMU then runs in a worker process, killed on timeout
@@ -62,26 +85,26 @@ class FMUSpec(Strict):
 class ConnectionTransform(Strict):
     """A linear transformation on a connection: ``input = factor * output + offset``."""
 
-    factor: float = 1.0
-    offset: float = 0.0
+    factor: Float = 1.0
+    offset: Float = 0.0
 
 
 #: ``[output, input]`` or ``[output, input, {factor = ..., offset = ...}]``
-Connection = tuple[str, str] | tuple[str, str, ConnectionTransform]
+Connection = tuple[Str, Str] | tuple[Str, Str, ConnectionTransform]
 
 
 class SystemSpec(Strict):
     """The truth side from another tool: an SSP file (see :mod:`uwcosim.ssp`)."""
 
-    ssp: str
+    ssp: Str
 
 
 class ControlSpec(Strict):
-    target: str
-    table: list[tuple[float, float]] | None = None
-    waypoints: list[tuple[float, float]] | None = None
+    target: Str
+    table: list[tuple[Float, Float]] | None = None
+    waypoints: list[tuple[Float, Float]] | None = None
     interpolation: Literal["linear", "hold"] = "linear"
-    position: tuple[str, str] = ("vehicle.x", "vehicle.y")
+    position: tuple[Str, Str] = ("vehicle.x", "vehicle.y")
     acceptance_radius: PositiveFloat = 50.0
 
     @model_validator(mode="after")
@@ -114,8 +137,8 @@ LossSpec = Annotated[BernoulliLoss | GilbertElliottLoss, Field(discriminator="mo
 
 
 class NoiseSpec(Strict):
-    targets: list[str]
-    psd: list[Annotated[float, Field(ge=0)]]
+    targets: list[Str]
+    psd: list[NonNegativeFloat]
 
     @model_validator(mode="after")
     def _same_length(self) -> NoiseSpec:
@@ -125,9 +148,9 @@ class NoiseSpec(Strict):
 
 
 class SensorSpec(Strict):
-    outputs: list[str]
-    noise_inputs: list[str] = []
-    sigma: list[Annotated[float, Field(ge=0)]] = []
+    outputs: list[Str]
+    noise_inputs: list[Str] = []
+    sigma: list[NonNegativeFloat] = []
     period: PositiveInt = 1
     loss: LossSpec | None = None
 
@@ -147,69 +170,89 @@ class SensorSpec(Strict):
 
 class MapSpec(Strict):
     kind: Literal["synthetic", "file"] = "synthetic"
-    seed: int = 7
-    extent: tuple[float, float, float, float] = (0.0, 25_000.0, 0.0, 25_000.0)
+    seed: Int = 7
+    extent: tuple[Float, Float, Float, Float] = (0.0, 25_000.0, 0.0, 25_000.0)
     resolution: PositiveFloat = 50.0
     relief_std: PositiveFloat = 60.0
-    file: str | None = None
-    variable: str | None = None
-    fmu_parameter: str = "sounder.mapFile"
+    file: Str | None = None
+    variable: Str | None = None
+    fmu_parameter: Str = "sounder.mapFile"
 
     @model_validator(mode="after")
     def _file(self) -> MapSpec:
         if self.kind == "file" and not self.file:
             raise ValueError("kind = 'file' needs 'file'")
+        xmin, xmax, ymin, ymax = self.extent
+        if not (xmin < xmax and ymin < ymax):
+            raise ValueError(f"'extent' must be [xmin, xmax, ymin, ymax] with xmin < xmax and "
+                             f"ymin < ymax (got {list(self.extent)})")
+        if self.kind == "synthetic":
+            cells = ((xmax - xmin) / self.resolution + 1) * ((ymax - ymin) / self.resolution + 1)
+            if cells > MAX_MAP_CELLS:
+                raise ValueError(f"'extent' / 'resolution' give a {cells:.3g}-cell synthetic map "
+                                 f"(at most {MAX_MAP_CELLS:.0e}): coarsen 'resolution'")
         return self
 
 
 class ModelSpec(Strict):
     kind: Literal["tan", "cv"] = "tan"
-    truth: list[str]
-    controls: list[str] = []
-    sensors: list[str]
-    q_psd: list[float] | None = None
+    truth: list[Str]
+    controls: list[Str] = []
+    sensors: list[Str]
+    q_psd: list[NonNegativeFloat] | None = None
 
 
 class EstimatorSpec(BaseModel):
     """``type`` picks the filter; ``policy`` the lost-measurement policy; other keys are the
     filter's own settings (checked by the filter)."""
 
-    model_config = ConfigDict(extra="allow")
-    type: str
-    policy: str = "skip"
-    sensors: list[str] | None = None
-    initial_std: list[Annotated[float, Field(gt=0)]] | None = None
+    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
+    type: Str
+    policy: Str = "skip"
+    sensors: list[Str] | None = None
+    initial_std: list[Annotated[Float, Field(gt=0)]] | None = None
 
 
 class EstimationSpec(Strict):
-    initial_std: list[Annotated[float, Field(gt=0)]]
+    initial_std: list[Annotated[Float, Field(gt=0)]]
     initial_error: Literal["random", "zero"] = "random"
+    #: [xmin, xmax, ymin, ymax] (m): an estimate outside is diverged (default: the map's
+    #: extent widened by its larger side; uwcosim.divergence)
+    position_bound: tuple[Float, Float, Float, Float] | None = None
+
+    @model_validator(mode="after")
+    def _bound(self) -> EstimationSpec:
+        b = self.position_bound
+        if b is not None and not (b[0] < b[1] and b[2] < b[3]):
+            raise ValueError(f"'position_bound' must be [xmin, xmax, ymin, ymax] with "
+                             f"xmin < xmax and ymin < ymax (got {list(b)})")
+        return self
 
 
 class LogSpec(Strict):
-    signals: list[str] = ["*"]
+    signals: list[Str] = ["*"]
     chunk_steps: PositiveInt = 1000
 
 
 class OutputSpec(Strict):
-    figures: bool = True
-    density_snapshots: list[float] = []
+    figures: Bool = True
+    density_snapshots: list[Float] = []
 
 
 class Scenario(Strict):
-    name: str = "scenario"
-    description: str = ""
+    name: Str = "scenario"
+    description: Str = ""
     run: RunSpec
     system: SystemSpec | None = None
-    fmus: dict[str, FMUSpec]
+    fmus: dict[Str, FMUSpec]
     connections: list[Connection] = []
-    controls: dict[str, ControlSpec] = {}
-    noise: dict[str, NoiseSpec] = {}
-    sensors: dict[str, SensorSpec] = {}
+    controls: dict[Str, ControlSpec] = {}
+    noise: dict[Str, NoiseSpec] = {}
+    sensors: dict[Str, SensorSpec] = {}
     map: MapSpec | None = None
     model: ModelSpec | None = None
     estimation: EstimationSpec | None = None
-    estimators: dict[str, EstimatorSpec] = {}
+    estimators: dict[Str, EstimatorSpec] = {}
     log: LogSpec = LogSpec()
     output: OutputSpec = OutputSpec()
 

@@ -23,7 +23,7 @@ demo: fmus
 chromium:
 	@command -v chromium >/dev/null || command -v chromium-browser >/dev/null || \
 	  { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && \
-	    apt-get install -y -q chromium >/dev/null; } || \
+	    { apt-get update -q >/dev/null; apt-get install -y -q chromium >/dev/null; }; } || \
 	  echo "chromium not installed: the HTML report browser tests will be skipped"
 
 test: fmus chromium

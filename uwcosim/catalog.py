@@ -56,7 +56,8 @@ def list_estimators() -> str:
         if not settings:
             lines.append("    settings: none")
         for setting, typ, default, doc in settings:
-            lines.append(f"    {setting} ({typ}, default {default!r}): {doc}")
+            value = "required" if default == "required" else f"={default!r}"
+            lines.append(f"    {setting}{value} ({typ}): {doc}")
     return "\n".join(lines)
 
 

@@ -45,6 +45,10 @@ class FilterSettings(BaseModel):
     needs_rng: ClassVar[bool] = False
 
 
+class NoSettings(FilterSettings):
+    """The settings of a filter registered without a settings model: none."""
+
+
 def settings_for(*names: str):
     """Class decorator: declare ``cls`` as the settings model of the filters ``names``."""
 
@@ -57,12 +61,9 @@ def settings_for(*names: str):
 
 
 def settings_model(kind: str) -> type[FilterSettings]:
-    """The settings model of the registered filter ``kind`` (``ESTIMATORS.get`` first)."""
-    model = ESTIMATORS.settings(kind)
-    if model is None:
-        raise LookupError(f"estimator {kind!r} has no settings model: declare one in "
-                          f"uwcosim/filters/settings.py")
-    return model
+    """The settings model of the registered filter ``kind`` (:class:`NoSettings` when none is
+    declared, e.g. a filter a user registers in Python without settings)."""
+    return ESTIMATORS.settings(kind) or NoSettings
 
 
 def settings_problems(kind: str, settings: dict[str, Any]) -> list[str]:

@@ -235,3 +235,14 @@ def test_schema_covers_every_key_and_every_filter():
     for kind in ESTIMATORS.names():
         props = schema["$defs"][f"Estimator_{kind}"]["properties"]
         assert set(props) >= set(settings_model(kind).model_fields) | {"type", "policy"}
+
+
+def test_check_of_an_ssp_alone(project_fmus, tmp_path, cli, monkeypatch):
+    from tests.test_ssp import nested_ssp
+
+    path = nested_ssp(tmp_path / "n.ssp", project_fmus)
+    monkeypatch.chdir(tmp_path)
+    code, out, err = cli("check", str(path), "--set", "run.step=0.5")
+    assert code == 0 and err == [] and "ok (checked: schema, FMUs" in out
+    code, _, err = cli("check", str(path))
+    assert code == 2 and len(err) == 1 and "key 'run.step'" in err[0]

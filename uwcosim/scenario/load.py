@@ -115,7 +115,8 @@ def absolute_path_overrides(overrides, base: Path, where: str) -> tuple[str, ...
 def read_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
                   overrides_base: str | Path | None = None) -> tuple[dict, LoadedScenario]:
     """Read a scenario and apply the overrides, without validating: ``(data, loaded)`` with
-    ``loaded.spec`` None. File, TOML and ``--set`` syntax errors raise ScenarioError."""
+    ``loaded.spec`` None (an ``.ssp`` alone: validated, ``data`` empty). File, TOML and ``--set``
+    syntax errors raise ScenarioError."""
     path = Path(path)
     where = str(path)
     # recorded with absolute paths, so that the run's log says which files it used
@@ -125,8 +126,8 @@ def read_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
     if path.suffix.lower() == ".ssp":
         from uwcosim.ssp.scenario import load_ssp
 
-        loaded = load_ssp(path, overrides)
-        return loaded.spec.model_dump(), loaded
+        loaded = load_ssp(path, overrides)  # validated by its reader: spec set
+        return {}, loaded
     if not path.is_file():
         raise ScenarioError(f"{where}: scenario file not found")
     try:

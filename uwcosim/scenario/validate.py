@@ -309,7 +309,10 @@ def check_scenario(path: str | Path, overrides=(), overrides_base=None) -> Check
     except UwcosimError as exc:
         report.problems.append(Problem.of(exc))
         return report
-    spec, report.problems = validate_data(data, str(Path(path)))
+    if loaded.spec is not None:  # an .ssp alone: validated by its reader
+        spec, report.problems = loaded.spec, reference_problems(loaded.spec, str(path))
+    else:
+        spec, report.problems = validate_data(data, str(Path(path)))
     report.checked.append("schema")
     if spec is None:
         return report

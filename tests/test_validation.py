@@ -104,7 +104,13 @@ def test_load_reports_cross_references_without_fmus():
              ("model.q_psd=[1.0, 1.0]", "key 'model.q_psd': the TAN model needs 4"),
              ("sensors.depth.sigma=[]|sensors.depth.noise_inputs=[]",
               "key 'sensors.depth.sigma': the filter model needs one sigma per output (1)"),
-             ('estimators.ekf.policy="guess"', "unknown lost-measurement policy 'guess'")]
+             ('estimators.ekf.policy="guess"', "unknown lost-measurement policy 'guess'"),
+             # these gave a traceback (numpy broadcasting) or named no key before
+             ("estimation.initial_std=[1.0, 1.0]", "key 'estimation.initial_std': 2 values; "
+              "expected one per state of the tan model (x, y, vx, vy)"),
+             ("estimators.ekf.initial_std=[1.0]", "key 'estimators.ekf.initial_std': 1 values"),
+             ('model.truth=["vehicle.x", "vehicle.y", "vehicle.vx"]', "key 'model.truth': 3 "
+              "signals; expected one per state")]
     for override, expected in cases:
         with pytest.raises(ScenarioError) as info:
             load_scenario(SCEN, override.split("|"))

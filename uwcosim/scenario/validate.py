@@ -171,6 +171,10 @@ def validated_settings(spec: EstimatorSpec) -> dict[str, Any]:
     return model.model_dump(include=set(extra))
 
 
+#: the states of the filters' models (uwcosim.models.tan, uwcosim.models.cv_model)
+MODEL_STATES = {"tan": ("x", "y", "vx", "vy"), "cv": ("px", "vx", "py", "vy")}
+
+
 def reference_problems(spec: Scenario, where: str) -> list[Problem]:
     """Cross-references between sections that need no FMU."""
     out: list[str] = []
@@ -178,6 +182,17 @@ def reference_problems(spec: Scenario, where: str) -> list[Problem]:
         out.append("key 'model': required when estimators are given")
     m = spec.model
     if m is not None:
+        states = MODEL_STATES[m.kind]
+        per_state = f"one per state of the {m.kind} model ({', '.join(states)})"
+        if len(m.truth) != len(states):
+            out.append(f"key 'model.truth': {len(m.truth)} signals; expected {per_state}")
+        stds = [("estimation.initial_std", spec.estimation.initial_std if spec.estimation
+                 else None)]
+        stds += [(f"estimators.{n}.initial_std", es.initial_std)
+                 for n, es in spec.estimators.items()]
+        for key, std in stds:
+            if std is not None and len(std) != len(states):
+                out.append(f"key '{key}': {len(std)} values; expected {per_state}")
         for c in m.controls:
             if c not in spec.controls:
                 out.append(f"key 'model.controls': unknown control {c!r} "

@@ -300,12 +300,15 @@ class Master:
         """The adapter of FMU ``name``: in this process, or in a worker when ``timeout_s``."""
         path = self.system.resolve(f.path)
         unzip = str(Path(self.unzip_root) / name)
-        if f.timeout_s is not None and not self.check_only:  # checks call no FMU function
-            ad = ProxyAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol, f.timeout_s,
-                              unzip_dir=unzip)
-        else:
-            ad = FMUAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol,
-                            unzip_dir=unzip)
+        try:
+            if f.timeout_s is not None and not self.check_only:  # checks call no FMU function
+                ad = ProxyAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol,
+                                  f.timeout_s, unzip_dir=unzip)
+            else:
+                ad = FMUAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol,
+                                unzip_dir=unzip)
+        except FMUError as exc:  # missing, corrupt, another platform: say which key
+            raise FMUError(f"{exc} [{self._where(f'fmus.{name}.path')}]") from None
         self.adapters[name] = ad  # closed with the others if what follows is refused
         if f.map is not None:
             base = self.system.base_dir or Path.cwd()

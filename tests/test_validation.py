@@ -252,3 +252,27 @@ def test_check_of_an_ssp_alone(project_fmus, tmp_path, cli, monkeypatch):
     assert code == 0 and err == [] and "ok (checked: schema, FMUs" in out
     code, _, err = cli("check", str(path))
     assert code == 2 and len(err) == 1 and "key 'run.step'" in err[0]
+
+
+def test_arbitrary_filter_settings_never_give_a_traceback():
+    """Any key of any filter's settings with any TOML value: a ScenarioError naming the key,
+    or a valid scenario."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from tests.test_bad_inputs import VALUES, _toml
+
+    kinds = [k for k in ESTIMATORS.names() if ESTIMATORS.get(k).__module__.startswith("uwcosim")]
+    keys = sorted({k for kind in kinds for k in settings_model(kind).model_fields} | {"rng"})
+
+    @settings(max_examples=120, deadline=None)
+    @given(kind=st.sampled_from(kinds), key=st.sampled_from(keys), value=VALUES)
+    def check(kind, key, value):
+        override = f'estimators.e={{type="{kind}", {key} = {_toml(value)}}}'
+        try:
+            load_scenario(SCEN, [override])
+        except ScenarioError as exc:
+            assert len(str(exc).splitlines()) == 1
+            assert "key 'estimators.e" in str(exc), str(exc)
+
+    check()

@@ -49,7 +49,8 @@ def simulate(model, steps: int, seed: int = 1):
 
 
 def time_ours(name, model, zs, x0, settings):
-    est = ESTIMATORS.get(name).from_settings(model, x0, np.diag(STD0**2), settings)
+    est = ESTIMATORS.get(name).from_settings(model, x0, np.diag(STD0**2), settings,
+                                             rng=np.random.default_rng(1))  # pf's stream
     times = np.empty(len(zs))
     xs = np.empty((len(zs), 4))
     for k, z in enumerate(zs):
@@ -101,7 +102,7 @@ def main() -> None:
 
     jobs = {}
     for name, settings in (("ukf", {}), ("ckf", {}), ("cukf", {}), ("ekf", {}),
-                           ("vbakf", {}), ("pf", {"seed": 1, "n_particles": args.particles})):
+                           ("vbakf", {}), ("pf", {"n_particles": args.particles})):
         label = f"ours {name}" + (f"-{args.particles}" if name == "pf" else "")
         jobs[label] = lambda z, n=name, s=settings: time_ours(n, model, z, x0, s)
     try:

@@ -1,8 +1,7 @@
 """``uwcosim list estimators|scenarios|fmus``: what is available, from the registries.
 
-- estimators: every registered filter, the first line of its docstring and its settings with
-  their defaults (the keyword arguments of its constructor, as the scenario passes them; ``rng``
-  is the master's and not a setting);
+- estimators: every registered filter, the first line of its docstring and its settings (its
+  settings model, :mod:`uwcosim.filters.settings`): name, type, default and description;
 - scenarios: the shipped scenarios (:func:`uwcosim.paths.scenarios_dir`), name and description;
 - fmus: the project's FMU models, their description, and the built archives found in ``fmus/``
   of the checkout or the demo's cache folder.
@@ -10,26 +9,40 @@
 
 from __future__ import annotations
 
-import inspect
 import tomllib
+import types
 from pathlib import Path
+from typing import Annotated, Literal, Union, get_args, get_origin
 
-NOT_SETTINGS = ("self", "model", "x0", "P0", "rng")
+from pydantic_core import PydanticUndefined
 
 
 def _first_line(doc: str | None) -> str:
     return (doc or "").strip().splitlines()[0].rstrip(".") if doc and doc.strip() else ""
 
 
-def estimator_settings(cls) -> dict[str, object]:
-    """``{setting: default}`` of an estimator class (``inspect.Parameter.empty``: required)."""
-    params = inspect.signature(cls.__init__).parameters
-    return {n: p.default for n, p in params.items() if n not in NOT_SETTINGS
-            and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
+def _type_name(t) -> str:
+    """A settings type as a reader writes it: ``int``, ``list[str] | None``, ``'a' | 'b'``."""
+    origin, args = get_origin(t), get_args(t)
+    if origin is Annotated:
+        return _type_name(args[0])
+    if origin in (Union, types.UnionType):
+        return " | ".join(_type_name(a) for a in args)
+    if origin is Literal:
+        return " | ".join(repr(a) for a in args)
+    if origin is list:
+        return f"list[{_type_name(args[0])}]"
+    return "None" if t is type(None) else getattr(t, "__name__", str(t))
 
 
-def _fmt_default(v) -> str:
-    return "required" if v is inspect.Parameter.empty else repr(v)
+def estimator_settings(kind: str) -> list[tuple[str, str, object, str]]:
+    """``[(setting, type, default, description)]`` of the registered filter ``kind``."""
+    from uwcosim.filters.settings import settings_model
+
+    model = settings_model(kind)
+    return [(n, _type_name(f.annotation),
+             "required" if f.default is PydanticUndefined else f.default, f.description or "")
+            for n, f in model.model_fields.items()]
 
 
 def list_estimators() -> str:
@@ -39,9 +52,12 @@ def list_estimators() -> str:
     for name in ESTIMATORS.names():
         cls = ESTIMATORS.get(name)
         lines.append(f"{name}: {_first_line(cls.__doc__)}")
-        settings = estimator_settings(cls)
-        lines.append("    settings: " + (", ".join(f"{k}={_fmt_default(v)}"
-                                                   for k, v in settings.items()) or "none"))
+        settings = estimator_settings(name)
+        if not settings:
+            lines.append("    settings: none")
+        for setting, typ, default, doc in settings:
+            value = "required" if default == "required" else f"={default!r}"
+            lines.append(f"    {setting}{value} ({typ}): {doc}")
     return "\n".join(lines)
 
 

@@ -1,6 +1,8 @@
 """Command-line interface: a thin layer over the library.
 
-``uwcosim run SCENARIO [--seed N] [--out DIR] [--set key=value ...]``, ``uwcosim report RUN``,
+``uwcosim run SCENARIO [--seed N] [--out DIR] [--set key=value ...]``,
+``uwcosim check SCENARIO [--set key=value ...]``, ``uwcosim schema [--out FILE]``,
+``uwcosim report RUN``,
 ``uwcosim export RUN --csv|--mat``, ``uwcosim list estimators|scenarios|fmus``, ``uwcosim demo``,
 ``uwcosim fmu build|info|validate|check ...``, ``uwcosim regress RUN BASELINE``,
 ``uwcosim baseline update|check``, ``uwcosim campaign SPEC``, ``uwcosim verify example1``,
@@ -48,6 +50,34 @@ def _cmd_run(args) -> int:
     out = Path(args.out) if args.out else Path("runs") / loaded.path.stem
     prepare_out_dir(out, args.force)
     _print_result(run_scenario(loaded, out, seed=args.seed, figures=not args.no_figures))
+    return 0
+
+
+def _cmd_check(args) -> int:
+    from uwcosim.scenario.validate import check_scenario
+
+    report = check_scenario(args.scenario, args.set or [], overrides_base=Path.cwd())
+    for p in report.problems:
+        print(p.message, file=sys.stderr)
+    n = len(report.problems)
+    print(f"{args.scenario}: " + (f"{n} problem{'s' * (n != 1)}" if n else "ok") +
+          f" (checked: {', '.join(report.checked) or 'nothing'})")
+    return report.exit_code
+
+
+def _cmd_schema(args) -> int:
+    from uwcosim.scenario.json_schema import scenario_json_schema_text
+
+    text = scenario_json_schema_text()
+    if args.out is None:
+        print(text, end="")
+        return 0
+    try:
+        Path(args.out).write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise UwcosimError(f"{args.out}: cannot write the schema ({exc.strerror or exc})"
+                           ) from None
+    print(args.out)
     return 0
 
 
@@ -254,6 +284,18 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--force", action="store_true",
                    help="run into a non-empty run directory, replacing its run files")
     r.set_defaults(func=_cmd_run)
+
+    ck = sub.add_parser("check", help="validate a scenario without running it: every problem "
+                        "of its keys, the FMUs' variables and types, the map and the filters, "
+                        "one line each (exit 0 ok, 2 scenario problems, 3 FMU problems only)")
+    ck.add_argument("scenario", help="scenario .toml, or an SSP file .ssp")
+    ck.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
+    ck.set_defaults(func=_cmd_check)
+
+    sc = sub.add_parser("schema", help="print the JSON Schema of the scenario format (for "
+                        "editors: '#:schema ./scenario.schema.json' in a TOML file)")
+    sc.add_argument("--out", default=None, help="write to this file (default: standard output)")
+    sc.set_defaults(func=_cmd_schema)
 
     rp = sub.add_parser("report", help="rebuild the figures and report.md of an existing run "
                         "or campaign directory from its files alone")

@@ -6,11 +6,13 @@ numbers: all estimators see the same measurements), after its lost-measurement p
 decided what to feed it. A diverging estimator (:mod:`uwcosim.divergence`: non-finite state,
 covariance not symmetric positive definite, negative NIS/NEES, position out of bounds) is
 flagged and stopped; the others go on.
+
+The scenario was validated when it was loaded (:mod:`uwcosim.scenario.validate`: sensors,
+controls, filter types, policies and settings), so the bank trusts it.
 """
 
 from __future__ import annotations
 
-import inspect
 import time
 from array import array
 from dataclasses import dataclass, field
@@ -18,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from uwcosim.errors import FilterDivergence, ScenarioError
-from uwcosim.filters import ESTIMATORS, Estimator
+from uwcosim.filters import Estimator
 from uwcosim.master.sources import ChunkedTable, gaussian_drawer, stream
 
 
@@ -44,23 +46,19 @@ class EstimatorBank:
         from uwcosim.divergence import DivergenceCheck, default_bound
         from uwcosim.evaluation.metrics import position_velocity_indices
         from uwcosim.filters.policies import POLICIES
+        from uwcosim.filters.settings import build
+        from uwcosim.scenario.validate import validated_settings
 
         spec = master.spec
         self.model = model
         self.where = where
         mspec = spec.model
         self.truth_slots = np.array([master._slot(s, "model.truth") for s in mspec.truth])
-        self.control_slots = np.array(
-            [master.slots[f"controls.{c}"] if f"controls.{c}" in master.slots
-             else self._bad(f"model.controls: unknown control {c!r} "
-                            f"(controls: {', '.join(spec.controls)})")
-             for c in mspec.controls], dtype=np.intp)
+        self.control_slots = np.array([master.slots[f"controls.{c}"] for c in mspec.controls],
+                                      dtype=np.intp)
         names, slots, sensor_of = [], [], []
         for sname in mspec.sensors:
-            sensor = master.sensors.get(sname)
-            if sensor is None:
-                self._bad(f"model.sensors: unknown sensor {sname!r} "
-                          f"(sensors: {', '.join(master.sensors)})")
+            sensor = master.sensors[sname]
             names += sensor.outputs
             slots += list(sensor.slots)
             sensor_of += [sname] * len(sensor.outputs)
@@ -73,9 +71,6 @@ class EstimatorBank:
         for sname in mspec.sensors:
             s = spec.sensors[sname]
             if s.sigma and not s.noise_inputs:
-                if len(s.sigma) != len(s.outputs):
-                    self._bad(f"sensors.{sname}.sigma: additive noise needs one sigma per "
-                              f"output ({len(s.outputs)})")
                 makers.append(lambda sname=sname, s=s: gaussian_drawer(
                     stream(master.seed, f"sensor-noise:{sname}"), s.sigma))
             else:
@@ -98,26 +93,20 @@ class EstimatorBank:
             err0[:] = 0.0
         self.tracks: list[Track] = []
         for ename, es in spec.estimators.items():
-            key = f"estimators.{ename}"
-            cls = ESTIMATORS.get(es.type, where=f"{where}: key '{key}.type'")
-            settings = dict(es.model_extra or {})
-            if "rng" in inspect.signature(cls.__init__).parameters:
-                settings["rng"] = stream(master.seed, f"estimator:{ename}")
             std = np.asarray(es.initial_std, float) if es.initial_std else std0
-            est = cls.from_settings(model, x_true0 + err0, np.diag(std**2), settings,
-                                    where=f"{where}: key '{key}'")
+            try:
+                est = build(es.type, model, x_true0 + err0, np.diag(std**2),
+                            validated_settings(es), rng=stream(master.seed, f"estimator:{ename}"))
+            except (TypeError, ValueError) as exc:  # what needs the model (names, memory)
+                raise ScenarioError(f"{where}: key 'estimators.{ename}': {exc}") from None
+            except MemoryError:
+                raise ScenarioError(f"{where}: key 'estimators.{ename}': not enough memory "
+                                    f"for these settings") from None
             est.t = master.t0
-            policy = POLICIES.get(es.policy, where=f"{where}: key '{key}.policy'")(model.nz)
+            policy = POLICIES.get(es.policy)(model.nz)
             use_sensors = es.sensors if es.sensors is not None else list(mspec.sensors)
-            for s in use_sensors:
-                if s not in mspec.sensors:
-                    self._bad(f"{key}.sensors: {s!r} is not among model.sensors "
-                              f"({', '.join(mspec.sensors)})")
             use = np.array([s in use_sensors for s in sensor_of], dtype=bool)
             self.tracks.append(Track(ename, est, policy, use))
-
-    def _bad(self, msg: str):
-        raise ScenarioError(f"{self.where}: key '{msg.split(':')[0]}':{msg.split(':', 1)[1]}")
 
     def measurements(self, master) -> tuple[np.ndarray, np.ndarray]:
         """``(z, received)`` at the master's current step; z is NaN where not received.

@@ -5,6 +5,7 @@ from uwcosim.filters import (  # noqa: F401  (importing registers the estimators
     particle,
     point_mass,
     projection,
+    settings,
     sigma_point,
     variational,
 )

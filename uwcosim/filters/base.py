@@ -10,13 +10,12 @@ code, numpy in and numpy out)::
     est.t                     # time of the current estimate; the driver sets it (the master
                               # sets est.t = t0 + k*h before each update; it is never summed)
 
-Settings come from scenarios by name through :data:`ESTIMATORS` and
-:meth:`Estimator.from_settings`, which rejects unknown settings with a one-line error.
+Settings come from scenarios by name through :data:`ESTIMATORS`; each filter's settings are
+declared in :mod:`uwcosim.filters.settings` (:meth:`Estimator.from_settings` checks them).
 """
 
 from __future__ import annotations
 
-import inspect
 from abc import ABC, abstractmethod
 from typing import Any, Protocol
 
@@ -80,19 +79,18 @@ class Estimator(ABC):
 
     @classmethod
     def from_settings(
-        cls, model: StateSpaceModel, x0, P0, settings: dict[str, Any], where: str = ""
+        cls, model: StateSpaceModel, x0, P0, settings: dict[str, Any], where: str = "",
+        rng: np.random.Generator | None = None,
     ) -> Estimator:
-        """Build from scenario settings, rejecting unknown keys with a one-line error."""
-        params = inspect.signature(cls.__init__).parameters
-        allowed = [p for p in params if p not in ("self", "model", "x0", "P0")]
-        for key in settings:
-            if key not in allowed:
-                raise ScenarioError(
-                    f"{where}: unknown setting {key!r} for estimator {cls.kind!r} "
-                    f"(valid: {', '.join(allowed) or 'none'})"
-                )
+        """Build from scenario settings, checked against the filter's settings model
+        (:mod:`uwcosim.filters.settings`); every problem in one line."""
+        from uwcosim.filters.settings import build, settings_problems
+
+        problems = settings_problems(cls.kind, settings)
+        if problems:
+            raise ScenarioError(f"{where}: {'; '.join(problems)}")
         try:
-            return cls(model, x0, P0, **settings)
+            return build(cls.kind, model, x0, P0, settings, rng=rng)
         except (TypeError, ValueError) as exc:
             raise ScenarioError(f"{where}: {exc}") from None
         except MemoryError:

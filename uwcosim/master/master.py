@@ -31,14 +31,15 @@ from __future__ import annotations
 import shutil
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from multiprocessing import util as mp_util
 from pathlib import Path
 
 import numpy as np
 
-from uwcosim.errors import FMUError, ScenarioError
+from uwcosim.errors import FMUError, ScenarioError, UwcosimError
 from uwcosim.master import vartypes
 from uwcosim.master.adapter import Binding, FMUAdapter
 from uwcosim.master.graph import stepping_order
@@ -95,10 +96,22 @@ def _remove_tree(path: str) -> None:
     shutil.rmtree(path, ignore_errors=True)
 
 
+class _Skipped(Exception):
+    """A check that refers to an FMU that could not be opened (already reported)."""
+
+
 class Master:
     """Co-simulation of one system (or loaded scenario) with one seed."""
 
-    def __init__(self, system, seed: int | None = None, workdir: Path | None = None) -> None:
+    def __init__(self, system, seed: int | None = None, workdir: Path | None = None,
+                 check_only: bool = False) -> None:
+        """``check_only``: open the FMUs' model descriptions and check the system against them,
+        collecting every problem in :attr:`problems` (instead of raising the first); nothing
+        is built to run (``uwcosim check``, :mod:`uwcosim.scenario.validate`)."""
+        self.check_only = check_only
+        #: the problems found while building (UwcosimError instances)
+        self.problems: list[UwcosimError] = []
+        self._broken: set[str] = set()  # FMUs that could not be opened
         if isinstance(system, System):
             self.loaded, self.spec = None, None
         else:  # a LoadedScenario: estimators and the logger read its spec
@@ -141,10 +154,26 @@ class Master:
     def _where(self, key: str) -> str:
         return f"{self.system.where}: key '{key}'"
 
+    @contextmanager
+    def _collect(self) -> Iterator[None]:
+        """Record a problem of the block in :attr:`problems` and go on with the next check."""
+        try:
+            yield
+        except _Skipped:
+            pass
+        except UwcosimError as exc:
+            self.problems.append(exc)
+
     def _build(self) -> None:
+        """Check every input of the system against the FMUs (all problems, :attr:`problems`),
+        raise the first (saying how many more), then build the stepping network."""
         system = self.system
         for name, f in system.fmus.items():
-            self.adapters[name] = self._open(name, f)
+            n = len(self.problems)
+            with self._collect():
+                self.adapters[name] = self._open(name, f)
+            if len(self.problems) > n:
+                self._broken.add(name)
         self.slots: dict[str, int] = {}
         self.out_vars: dict[str, object] = {}  # FMU output signal -> its model variable
         for name, ad in self.adapters.items():
@@ -155,65 +184,89 @@ class Master:
         self.controls: dict[str, object] = {}
         for cname, c in system.controls.items():
             src = TableControl(c) if c.table is not None else WaypointHeading(c)
-            if isinstance(src, WaypointHeading):
-                src.pos_slots = [self._numeric_slot(p, f"controls.{cname}.position")
-                                 for p in c.position]
             self.controls[cname] = src
             self.slots[f"controls.{cname}"] = len(self.slots)
+            with self._collect():
+                if isinstance(src, WaypointHeading):
+                    src.pos_slots = [self._numeric_slot(p, f"controls.{cname}.position")
+                                     for p in c.position]
             key = f"controls.{cname}.target"
-            self._check_input(c.target, key, drivers, f"controls.{cname}")
-            problem = control_problem(c, self._variable(c.target, key))
-            if problem:
-                raise ScenarioError(f"{self._where(key)}: {c.target!r} {problem}")
+            with self._collect():
+                self._check_input(c.target, key, drivers, f"controls.{cname}")
+                problem = control_problem(c, self._variable(c.target, key))
+                if problem:
+                    raise ScenarioError(f"{self._where(key)}: {c.target!r} {problem}")
         #: noise sources none of whose targets the FMU has (a third-party vehicle without
         #: process-noise inputs): the truth runs without them, the filters' model keeps them
-        self.noise_free = noise_free_sources(system, self.adapters)
+        self.noise_free = noise_free_sources(
+            system, {n: a for n, a in self.adapters.items() if n not in self._broken})
         for nname, nz in system.noise.items():
             if nname in self.noise_free:
                 continue
             for i, tgt in enumerate(nz.targets):
                 key = f"noise.{nname}.{i}"
                 self.slots[key] = len(self.slots)
-                self._check_input(tgt, f"noise.{nname}.targets", drivers, key, float_only=True)
+                with self._collect():
+                    self._check_input(tgt, f"noise.{nname}.targets", drivers, key,
+                                      float_only=True)
         for sname, s in system.sensors.items():
             for i, tgt in enumerate(s.noise_inputs):
                 key = f"sensornoise.{sname}.{i}"
                 self.slots[key] = len(self.slots)
-                self._check_input(tgt, f"sensors.{sname}.noise_inputs", drivers, key,
-                                  float_only=True)
+                with self._collect():
+                    self._check_input(tgt, f"sensors.{sname}.noise_inputs", drivers, key,
+                                      float_only=True)
         self.transforms: dict[str, tuple[float, float]] = {}  # input -> (factor, offset)
         for i, conn in enumerate(system.connections):
-            src, dst = conn[0], conn[1]
-            key = f"connections[{i}]"
-            if len(conn) > 2:
-                self.transforms[dst] = connection_affine(conn[2], f"{self._where(key)}")
-            self._slot(src, key)
-            self._check_input(dst, key, drivers, src)
-            dvar = self._variable(dst, key)
-            svar = self.out_vars.get(src)  # None: a source of the master (a float)
-            if svar is None:
-                problem = None if vartypes.kind(dvar) == "float" else "expected a Real input"
-            else:
-                problem = vartypes.connection_problem(svar, dvar)
-            if problem:
-                if problem.startswith("cannot connect") and " (" in problem:
-                    problem = problem.split(" (", 1)[1].rstrip(")")  # the names are ours
-                raise ScenarioError(
-                    f"{self._where(key)}: cannot connect {src!r} "
-                    f"({'Float64' if svar is None else svar.type}) to {dst!r} ({dvar.type}): "
-                    f"{problem}")
+            with self._collect():
+                self._check_connection(i, conn, drivers)
+        for sname, s in system.sensors.items():
+            for o in s.outputs:
+                with self._collect():
+                    self._numeric_slot(o, f"sensors.{sname}.outputs")
         self.drivers = drivers
+        if not self.problems:
+            deps = {n: a.feedthrough() for n, a in self.adapters.items()}
+            with self._collect():
+                order = stepping_order(list(self.adapters),
+                                       [(c[0], c[1]) for c in system.connections], deps)
+        if self.check_only:
+            return
+        if self.problems:
+            first = self.problems[0]
+            if len(self.problems) > 1:
+                first.args = (f"{first} (and {len(self.problems) - 1} more; see uwcosim "
+                              f"check)",)
+            raise first
         self.bus = np.zeros(len(self.slots))
         #: text of the String signals, by bus slot
         self.text: dict[int, str] = {}
         #: exact native values of the String/Int64/UInt64 outputs, by bus slot
         self.native: dict[int, object] = {}
-        deps = {n: a.feedthrough() for n, a in self.adapters.items()}
-        order = stepping_order(list(self.adapters), [(c[0], c[1]) for c in system.connections],
-                               deps)
         self.nodes: list[_Node] = [self._node(name) for name in order]
         self._sample_sources()
         self.sensors = self._build_sensors()
+
+    def _check_connection(self, i: int, conn, drivers: dict) -> None:
+        src, dst = conn[0], conn[1]
+        key = f"connections[{i}]"
+        if len(conn) > 2:
+            self.transforms[dst] = connection_affine(conn[2], f"{self._where(key)}")
+        self._slot(src, key)
+        self._check_input(dst, key, drivers, src)
+        dvar = self._variable(dst, key)
+        svar = self.out_vars.get(src)  # None: a source of the master (a float)
+        if svar is None:
+            problem = None if vartypes.kind(dvar) == "float" else "expected a Real input"
+        else:
+            problem = vartypes.connection_problem(svar, dvar)
+        if problem:
+            if problem.startswith("cannot connect") and " (" in problem:
+                problem = problem.split(" (", 1)[1].rstrip(")")  # the names are ours
+            raise ScenarioError(
+                f"{self._where(key)}: cannot connect {src!r} "
+                f"({'Float64' if svar is None else svar.type}) to {dst!r} ({dvar.type}): "
+                f"{problem}")
 
     def _node(self, name: str) -> _Node:
         ad = self.adapters[name]
@@ -247,12 +300,15 @@ class Master:
         """The adapter of FMU ``name``: in this process, or in a worker when ``timeout_s``."""
         path = self.system.resolve(f.path)
         unzip = str(Path(self.unzip_root) / name)
-        if f.timeout_s is not None:
-            ad = ProxyAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol, f.timeout_s,
-                              unzip_dir=unzip)
-        else:
-            ad = FMUAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol,
-                            unzip_dir=unzip)
+        try:
+            if f.timeout_s is not None and not self.check_only:  # checks call no FMU function
+                ad = ProxyAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol,
+                                  f.timeout_s, unzip_dir=unzip)
+            else:
+                ad = FMUAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol,
+                                unzip_dir=unzip)
+        except FMUError as exc:  # missing, corrupt, another platform: say which key
+            raise FMUError(f"{exc} [{self._where(f'fmus.{name}.path')}]") from None
         self.adapters[name] = ad  # closed with the others if what follows is refused
         if f.map is not None:
             base = self.system.base_dir or Path.cwd()
@@ -267,6 +323,8 @@ class Master:
     def _variable(self, signal: str, key: str):
         """The FMU variable named by ``fmu.variable``, or a one-line ScenarioError."""
         fmu, _, var = signal.partition(".")
+        if fmu in self._broken:
+            raise _Skipped(signal)
         if fmu not in self.adapters:
             raise ScenarioError(f"{self._where(key)}: unknown FMU {fmu!r} in {signal!r} "
                                 f"(FMUs: {', '.join(self.adapters)})")

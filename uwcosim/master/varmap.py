@@ -320,7 +320,8 @@ def _absent_noise_inputs(system, adapters: dict, signals: list[str]) -> list[str
         role = (f.role or (fmu if fmu in ROLES else None)) if f is not None else None
         roles = ROLES.get(role, {}) if role else {}
         spec = roles.get(var)
-        if spec is None or not var.startswith("w_") or spec[0] != "input" or spec[2]:
+        if spec is None or not var.startswith("w_") or spec[0] != "input" or spec[2] \
+                or fmu not in adapters:  # an FMU that could not be opened: reported already
             continue
         variables = adapters[fmu].variables
         other_inputs = [n for n, v in variables.items()

@@ -81,47 +81,14 @@ def _apply(data: dict, keys: list[str], value: Any, where: str) -> None:
     node[keys[-1]] = value
 
 
-def _allowed_keys(model: type[BaseModel] | None) -> str:
-    if model is None:
-        return ""
-    return ", ".join(model.model_fields)
+def format_validation_error(exc: ValidationError, where: str,
+                            root: type[BaseModel] = Scenario) -> str:
+    """The first problem of a pydantic error, one line (and how many more there are)."""
+    from uwcosim.scenario.validate import schema_problems
 
-
-def _submodel(loc: tuple, root: type[BaseModel]) -> type[BaseModel] | None:
-    """The pydantic model that owns the key at ``loc`` (for 'expected one of')."""
-    model: Any = root
-    for part in loc[:-1]:
-        if isinstance(part, int) or model is None:
-            continue
-        field = getattr(model, "model_fields", {}).get(part)
-        if field is None:
-            continue
-        ann = field.annotation
-        args = getattr(ann, "__args__", ())
-        candidates = [a for a in (ann, *args) if isinstance(a, type) and issubclass(a, BaseModel)]
-        model = candidates[0] if candidates else None
-    return model
-
-
-def format_validation_error(
-    exc: ValidationError, where: str, root: type[BaseModel] = Scenario
-) -> str:
-    err = exc.errors()[0]
-    loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p in ("bernoulli",
-                                                                           "gilbert_elliott")))
-    key = ".".join(str(p) for p in loc) or "(top level)"
-    etype = err["type"]
-    if etype == "extra_forbidden":
-        allowed = _allowed_keys(_submodel(loc, root))
-        return f"{where}: key '{key}': unknown key (expected one of: {allowed})"
-    if etype == "missing":
-        return f"{where}: key '{key}': required key is missing"
-    msg = err["msg"]
-    if "input" in err and etype not in ("value_error",):
-        got = repr(err["input"])
-        got = got if len(got) <= 60 else got[:57] + "..."
-        return f"{where}: key '{key}': {msg} (got {got})"
-    return f"{where}: key '{key}': {msg}"
+    problems = schema_problems(exc, where, root)
+    more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+    return problems[0].message + more
 
 
 def _is_path_key(keys: list[str]) -> bool:
@@ -145,15 +112,11 @@ def absolute_path_overrides(overrides, base: Path, where: str) -> tuple[str, ...
     return tuple(out)
 
 
-def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
-                  overrides_base: str | Path | None = None) -> LoadedScenario:
-    """Read, override and validate a scenario (a TOML file, or an ``.ssp`` run alone); raise
-    ScenarioError with one line on failure.
-
-    ``overrides_base``: the folder that relative paths in ``overrides`` are relative to (the
-    command line passes the current folder); by default they are relative to the scenario file,
-    like the paths written in it. Either way they are recorded as absolute paths.
-    """
+def read_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
+                  overrides_base: str | Path | None = None) -> tuple[dict, LoadedScenario]:
+    """Read a scenario and apply the overrides, without validating: ``(data, loaded)`` with
+    ``loaded.spec`` None (an ``.ssp`` alone: validated, ``data`` empty). File, TOML and ``--set``
+    syntax errors raise ScenarioError."""
     path = Path(path)
     where = str(path)
     # recorded with absolute paths, so that the run's log says which files it used
@@ -163,7 +126,8 @@ def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
     if path.suffix.lower() == ".ssp":
         from uwcosim.ssp.scenario import load_ssp
 
-        return load_ssp(path, overrides)
+        loaded = load_ssp(path, overrides)  # validated by its reader: spec set
+        return {}, loaded
     if not path.is_file():
         raise ScenarioError(f"{where}: scenario file not found")
     try:
@@ -185,9 +149,28 @@ def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
         from uwcosim.ssp.scenario import merge_system
 
         ssp = merge_system(data, path, where)
-    try:
-        spec = Scenario.model_validate(data)
-    except ValidationError as exc:
-        raise ScenarioError(format_validation_error(exc, where)) from None
-    return LoadedScenario(spec=spec, path=path.resolve(), text=text, overrides=tuple(overrides),
-                          ssp=ssp)
+    return data, LoadedScenario(spec=None, path=path.resolve(), text=text,
+                                overrides=tuple(overrides), ssp=ssp)
+
+
+def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
+                  overrides_base: str | Path | None = None) -> LoadedScenario:
+    """Read, override and validate a scenario (a TOML file, or an ``.ssp`` run alone); raise
+    ScenarioError with one line on failure: the first problem and how many more there are
+    (``uwcosim check`` lists them all, :mod:`uwcosim.scenario.validate`).
+
+    ``overrides_base``: the folder that relative paths in ``overrides`` are relative to (the
+    command line passes the current folder); by default they are relative to the scenario file,
+    like the paths written in it. Either way they are recorded as absolute paths.
+    """
+    from dataclasses import replace
+
+    from uwcosim.scenario.validate import first_error, validate_data
+
+    data, loaded = read_scenario(path, overrides, overrides_base)
+    if loaded.spec is not None:  # an .ssp alone: validated by its reader
+        return loaded
+    spec, problems = validate_data(data, str(Path(path)))
+    if problems:
+        raise first_error(problems) from None
+    return replace(loaded, spec=spec)

@@ -2,8 +2,10 @@
 
 A scenario names the FMUs and how they connect, the control inputs, the noise, the sensors and
 their loss models, the filter model and estimators, the run length, step and seed, and what to
-log. Unknown keys are errors. Cross-references (connections, targets, sensors) are checked in
-:mod:`uwcosim.scenario.validate` against the FMUs' model descriptions.
+log. Unknown keys are errors. :mod:`uwcosim.scenario.validate` reports every error of this
+schema at once, checks each ``[estimators.NAME]`` against its filter's settings model and the
+cross-references between sections; the FMU variables (connections, targets, sensors) are
+checked against the FMUs' model descriptions by the master (``uwcosim check`` runs both).
 """
 
 from __future__ import annotations
@@ -204,7 +206,8 @@ class ModelSpec(Strict):
 
 class EstimatorSpec(BaseModel):
     """``type`` picks the filter; ``policy`` the lost-measurement policy; other keys are the
-    filter's own settings (checked by the filter)."""
+    filter's own settings (checked against its settings model, :mod:`uwcosim.filters.settings`,
+    by :mod:`uwcosim.scenario.validate`)."""
 
     model_config = ConfigDict(extra="allow", allow_inf_nan=False)
     type: Str

@@ -1,0 +1,342 @@
+"""One validation pass over a scenario that reports every problem, not only the first.
+
+Three levels, each a list of one-line :class:`Problem` s naming the file, the key and what was
+expected:
+
+1. :func:`validate_data` (at load time, :func:`uwcosim.scenario.load_scenario`): every schema
+   error of the data (all pydantic errors, one line per key), every ``[estimators.NAME]``
+   against its filter's settings model (:mod:`uwcosim.filters.settings`: unknown keys list the
+   valid ones) and lost-measurement policy, and the cross-references that need no FMU
+   (``model.sensors``/``controls``, ``estimators.NAME.sensors``, the shape of the filters'
+   model, a map for a depth sensor). ``load_scenario`` raises the first with
+   ``(and N more; see uwcosim check)``.
+2. :func:`check_fmus`: the scenario against the FMUs' model descriptions (variables,
+   causalities, types of connections, start values and parameters, algebraic loops; the
+   master's own checks, run in its collecting mode, :meth:`uwcosim.master.master.Master`
+   ``check_only``), and ``model.truth`` outputs.
+3. :func:`check_filters`: the map is read, the filters' model built and every estimator
+   constructed at the initial state (what the constructors check: measurement names, grid
+   memory, ...).
+
+:func:`check_scenario` runs all three for ``uwcosim check`` (exit 0 ok, 2 scenario problems,
+3 FMU problems only). After validation the estimator bank and the model factory trust their
+input.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+from uwcosim.errors import ScenarioError, UwcosimError
+from uwcosim.scenario import schema
+from uwcosim.scenario.schema import EstimatorSpec, Scenario
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One problem: a one-line message and the exit status it maps to (2 scenario, 3 FMU)."""
+
+    message: str
+    exit_code: int = 2
+
+    @classmethod
+    def of(cls, exc: UwcosimError) -> Problem:
+        return cls(str(exc), exc.exit_code)
+
+
+def first_error(problems: list[Problem]) -> UwcosimError:
+    """The first problem as an exception, saying how many more there are."""
+    from uwcosim.errors import FMUError
+
+    p = problems[0]
+    more = f" (and {len(problems) - 1} more; see uwcosim check)" if len(problems) > 1 else ""
+    exc = FMUError if p.exit_code == 3 else ScenarioError
+    err = exc(p.message + more)
+    err.exit_code = p.exit_code
+    return err
+
+
+# -- level 1: the schema ------------------------------------------------------------------------
+_MODEL_NAMES = {n for n, v in vars(schema).items()
+                if isinstance(v, type) and issubclass(v, BaseModel)}
+_TAG = re.compile(r"^(float|int|bool|str|none|[a-z-]+\[.*\])$")
+
+
+def _is_tag(part: Any) -> bool:
+    """A union member's tag in a pydantic error location (not a key of the scenario)."""
+    return isinstance(part, str) and (bool(_TAG.match(part)) or part in _MODEL_NAMES
+                                      or part in ("bernoulli", "gilbert_elliott"))
+
+
+def _submodel(loc: tuple, root: type[BaseModel]) -> type[BaseModel] | None:
+    """The pydantic model that owns the key at ``loc`` (for 'expected one of')."""
+    model: Any = root
+    for part in loc[:-1]:
+        if isinstance(part, int) or model is None:
+            continue
+        fld = getattr(model, "model_fields", {}).get(part)
+        if fld is None:
+            continue
+        ann = fld.annotation
+        args = getattr(ann, "__args__", ())
+        candidates = [a for a in (ann, *args) if isinstance(a, type) and issubclass(a, BaseModel)]
+        model = candidates[0] if candidates else None
+    return model
+
+
+def _got(value: Any) -> str:
+    got = repr(value)
+    return got if len(got) <= 60 else got[:57] + "..."
+
+
+def schema_problems(exc: ValidationError, where: str, root: type[BaseModel] = Scenario,
+                    prefix: tuple = (),
+                    unknown: str = "unknown key (expected one of: {valid})") -> list[Problem]:
+    """One line per key of a pydantic error (a value refused by every member of a union is one
+    line listing the types it may have); ``unknown``: the message of an unknown key."""
+    by_key: dict[tuple, list[dict]] = {}
+    for err in exc.errors():
+        loc = tuple(p for p in err["loc"] if not _is_tag(p))
+        by_key.setdefault(loc, []).append(err)
+    out = []
+    for loc, errs in by_key.items():
+        key = ".".join(str(p) for p in (*prefix, *loc)) or "(top level)"
+        err = errs[0]
+        etype = err["type"]
+        if etype == "extra_forbidden":
+            owner = _submodel(loc, root)
+            valid = ", ".join(owner.model_fields) if owner is not None else ""
+            msg = f"key '{key}': " + unknown.format(valid=valid or "none")
+        elif etype == "missing":
+            msg = f"key '{key}': required key is missing"
+        elif len(errs) > 1 and all(e["type"].endswith("_type") for e in errs):
+            kinds = [str(e["loc"][-1]).split("[")[0] for e in errs if _is_tag(e["loc"][-1])]
+            msg = (f"key '{key}': invalid type (expected {' or '.join(dict.fromkeys(kinds))}; "
+                   f"got {_got(err.get('input'))})")
+        elif "input" in err and etype != "value_error":
+            msg = f"key '{key}': {err['msg']} (got {_got(err['input'])})"
+        else:
+            msg = f"key '{key}': {err['msg']}"
+        out.append(Problem(f"{where}: {msg}"))
+    return out
+
+
+def estimator_problems(data: dict, where: str) -> list[Problem]:
+    """``[estimators.NAME]`` of the raw data: filter type, policy and the filter's settings
+    (the settings model of :mod:`uwcosim.filters.settings`)."""
+    from uwcosim.filters import ESTIMATORS
+    from uwcosim.filters.policies import POLICIES
+    from uwcosim.filters.settings import settings_model
+
+    out: list[Problem] = []
+    estimators = data.get("estimators")
+    if not isinstance(estimators, dict):
+        return out
+    common = set(EstimatorSpec.model_fields)
+    for name, raw in estimators.items():
+        if not isinstance(raw, dict):
+            continue  # the schema says so
+        key = f"estimators.{name}"
+        kind, policy = raw.get("type"), raw.get("policy", "skip")
+        if isinstance(policy, str) and policy not in POLICIES:
+            out.append(Problem(f"{where}: key '{key}.policy': unknown lost-measurement policy "
+                               f"{policy!r} (valid: {', '.join(POLICIES.names())})"))
+        if not isinstance(kind, str):
+            continue
+        if kind not in ESTIMATORS:
+            out.append(Problem(f"{where}: key '{key}.type': unknown estimator {kind!r} "
+                               f"(valid: {', '.join(ESTIMATORS.names())})"))
+            continue
+        model = settings_model(kind)
+        settings = {k: v for k, v in raw.items() if k not in common}
+        try:
+            model.model_validate(settings)
+        except ValidationError as exc:
+            out += schema_problems(exc, where, model, ("estimators", name),
+                                   f"unknown setting for estimator {kind!r} (valid: {{valid}})")
+    return out
+
+
+def validated_settings(spec: EstimatorSpec) -> dict[str, Any]:
+    """The filter settings of a validated ``[estimators.NAME]``, as the scenario gives them."""
+    from uwcosim.filters.settings import settings_model
+
+    extra = dict(spec.model_extra or {})
+    model = settings_model(spec.type).model_validate(extra)
+    return model.model_dump(include=set(extra))
+
+
+#: the states of the filters' models (uwcosim.models.tan, uwcosim.models.cv_model)
+MODEL_STATES = {"tan": ("x", "y", "vx", "vy"), "cv": ("px", "vx", "py", "vy")}
+
+
+def reference_problems(spec: Scenario, where: str) -> list[Problem]:
+    """Cross-references between sections that need no FMU."""
+    out: list[str] = []
+    if spec.estimators and spec.model is None:
+        out.append("key 'model': required when estimators are given")
+    m = spec.model
+    if m is not None:
+        states = MODEL_STATES[m.kind]
+        per_state = f"one per state of the {m.kind} model ({', '.join(states)})"
+        if len(m.truth) != len(states):
+            out.append(f"key 'model.truth': {len(m.truth)} signals; expected {per_state}")
+        stds = [("estimation.initial_std", spec.estimation.initial_std if spec.estimation
+                 else None)]
+        stds += [(f"estimators.{n}.initial_std", es.initial_std)
+                 for n, es in spec.estimators.items()]
+        for key, std in stds:
+            if std is not None and len(std) != len(states):
+                out.append(f"key '{key}': {len(std)} values; expected {per_state}")
+        for c in m.controls:
+            if c not in spec.controls:
+                out.append(f"key 'model.controls': unknown control {c!r} "
+                           f"(controls: {', '.join(spec.controls)})")
+        known = [s for s in m.sensors if s in spec.sensors]
+        for s in m.sensors:
+            if s not in spec.sensors:
+                out.append(f"key 'model.sensors': unknown sensor {s!r} "
+                           f"(sensors: {', '.join(spec.sensors)})")
+        for s in known:
+            sen = spec.sensors[s]
+            if len(sen.sigma) != len(sen.outputs):
+                out.append(f"key 'sensors.{s}.sigma': the filter model needs one sigma per "
+                           f"output ({len(sen.outputs)})")
+        q = m.q_psd if m.q_psd is not None else [p for nz in spec.noise.values() for p in nz.psd]
+        if m.kind == "tan":
+            if len(q) != 4:
+                what = "model.q_psd" if m.q_psd is not None else "noise"
+                out.append(f"key '{what}': the TAN model needs 4 process-noise PSDs "
+                           f"(x, y, vx, vy), got {len(q)}")
+            shapes = [len(spec.sensors[s].outputs) for s in known]
+            if len(known) == len(m.sensors) and shapes not in ([2], [2, 1]):
+                out.append(f"key 'model.sensors': the TAN model takes a 2-output velocity "
+                           f"sensor and optionally a 1-output depth sensor, got {shapes}")
+            if len(m.sensors) == 2 and spec.map is None:
+                out.append("key 'map': a depth sensor needs a map")
+        if m.kind == "cv" and len(q) not in (1, 4):
+            what = "model.q_psd" if m.q_psd is not None else "noise"
+            out.append(f"key '{what}': the constant-velocity model needs 1 or 4 process-noise "
+                       f"PSDs (px, vx, py, vy), got {len(q)}")
+        for ename, es in spec.estimators.items():
+            for s in es.sensors or []:
+                if s not in m.sensors:
+                    out.append(f"key 'estimators.{ename}.sensors': {s!r} is not among "
+                               f"model.sensors ({', '.join(m.sensors)})")
+    n = spec.run.duration / spec.run.step
+    if abs(n - round(n)) > 1e-9 * max(1.0, n):
+        out.insert(0, f"key 'run.duration': must be a whole number of steps of "
+                   f"{spec.run.step:g} s (got {spec.run.duration:g})")
+    return [Problem(f"{where}: {msg}") for msg in out]
+
+
+def validate_data(data: dict, where: str) -> tuple[Scenario | None, list[Problem]]:
+    """Validate scenario data (after overrides): the spec (None if the schema refuses it) and
+    every problem found."""
+    problems = estimator_problems(data, where)
+    try:
+        spec = Scenario.model_validate(data)
+    except ValidationError as exc:
+        return None, schema_problems(exc, where) + problems
+    return spec, problems + reference_problems(spec, where)
+
+
+# -- levels 2 and 3: the FMUs, the map, the filters -------------------------------------------
+@dataclass
+class CheckReport:
+    """What ``uwcosim check`` found."""
+
+    path: Path
+    problems: list[Problem] = field(default_factory=list)
+    checked: list[str] = field(default_factory=list)
+
+    @property
+    def exit_code(self) -> int:
+        codes = {p.exit_code for p in self.problems}
+        return 0 if not codes else 2 if codes != {3} else 3
+
+
+def check_fmus(loaded) -> list[Problem]:
+    """The scenario against the FMUs' model descriptions (no FMU instantiated)."""
+    from uwcosim.master.master import Master
+
+    try:
+        master = Master(loaded, check_only=True)
+    except UwcosimError as exc:
+        return [Problem.of(exc)]
+    try:
+        problems = [Problem.of(e) for e in master.problems]
+        if not problems and loaded.spec.model is not None:
+            for s in loaded.spec.model.truth:
+                try:
+                    master._slot(s, "model.truth")
+                except UwcosimError as exc:
+                    problems.append(Problem.of(exc))
+        return problems
+    finally:
+        master.close()
+
+
+def check_filters(loaded) -> list[Problem]:
+    """Read the map, build the filters' model and construct every estimator at ``x = 0``."""
+    import numpy as np
+
+    from uwcosim.filters.settings import build
+    from uwcosim.models.factory import build_model
+    from uwcosim.runner import scenario_map
+
+    spec, where = loaded.spec, str(loaded.path)
+    try:
+        bathy = scenario_map(loaded)
+        if not spec.estimators:
+            return []
+        model = build_model(loaded, bathy)
+    except UwcosimError as exc:
+        return [Problem.of(exc)]
+    out = []
+    for name, es in spec.estimators.items():
+        std = es.initial_std or (spec.estimation.initial_std if spec.estimation else None)
+        P0 = np.diag(np.asarray(std if std else np.ones(model.nx), float) ** 2)
+        try:
+            if P0.shape != (model.nx, model.nx):
+                raise ValueError(f"initial_std has {len(std)} values for {model.nx} states")
+            build(es.type, model, np.zeros(model.nx), P0, validated_settings(es),
+                  rng=np.random.default_rng(0))
+        except (UwcosimError, ValueError, TypeError, MemoryError) as exc:
+            out.append(Problem(f"{where}: key 'estimators.{name}': {exc}"))
+    return out
+
+
+def check_scenario(path: str | Path, overrides=(), overrides_base=None) -> CheckReport:
+    """Every problem of a scenario: schema, references, FMUs, map and filters (nothing runs)."""
+    from dataclasses import replace
+
+    from uwcosim.scenario.load import read_scenario
+
+    report = CheckReport(Path(path))
+    try:
+        data, loaded = read_scenario(path, overrides, overrides_base)
+    except UwcosimError as exc:
+        report.problems.append(Problem.of(exc))
+        return report
+    if loaded.spec is not None:  # an .ssp alone: validated by its reader
+        spec, report.problems = loaded.spec, reference_problems(loaded.spec, str(path))
+    else:
+        spec, report.problems = validate_data(data, str(Path(path)))
+    report.checked.append("schema")
+    if spec is None:
+        return report
+    loaded = replace(loaded, spec=spec)
+    fmu = check_fmus(loaded)
+    report.problems += fmu
+    report.checked.append("FMUs")
+    if not report.problems:
+        report.problems += check_filters(loaded)
+        report.checked.append("map and filters")
+    report.problems = list(dict.fromkeys(report.problems))  # the master repeats run.duration
+    return report

@@ -99,14 +99,39 @@ class CasadiModel:
 
 def simulate(model, x0, controls, steps: int, rng: np.random.Generator, dt: float = 1.0):
     """A truth trajectory of a filter model itself, without FMUs (for filter studies, tests and
-    benchmarks): ``x_{k+1} = f(x_k, u_k) + chol(Q) w``, ``z_{k+1} = h(x_{k+1}) + sqrt(diag R) v``
-    with ``u_k = controls(k)``. Returns the states and measurements of steps 1..steps."""
-    x = np.asarray(x0, dtype=float).copy()
-    r = np.sqrt(np.diag(model.R))
-    xs, zs = [], []
+    benchmarks): ``x_{k+1} = f(x_k, u_k) + w_k``, ``z_k = h(x_{k+1}) + v_k`` with
+    ``u_k = controls(k)`` (called once per step, before the step's noise is drawn: it may draw
+    from ``rng`` too), ``w_k = G diag(q_psd/dt)^(1/2) e`` for a model with ``FG`` and ``q_psd``
+    (noise held over the step: ``Q = G diag(q_psd/dt) G'``), else ``chol(Q) e``,
+    and ``v_k ~ N(0, R)``. Returns ``(X [steps+1, nx] from x0, U [steps, nu], Z [steps, nz])``.
+    """
+    X = np.zeros((steps + 1, model.nx))
+    X[0] = x0
+    U = np.zeros((steps, model.nu))
+    Z = np.zeros((steps, model.nz))
+    zero = np.zeros(model.nz)
+    with_g = hasattr(model, "FG") and hasattr(model, "q_psd")
     for k in range(steps):
-        u = controls(k)
-        x = model.f(x, u, dt) + np.linalg.cholesky(model.Q(x, u, dt)) @ rng.standard_normal(x.size)
-        xs.append(x)
-        zs.append(model.h(x) + r * rng.standard_normal(r.size))
-    return np.array(xs), np.array(zs)
+        U[k] = controls(k)
+        e = rng.standard_normal(model.nx)
+        if with_g:
+            w = model.FG(X[k], U[k], dt)[1] @ (e * np.sqrt(model.q_psd / dt))
+        else:
+            w = np.linalg.cholesky(model.Q(X[k], U[k], dt)) @ e
+        X[k + 1] = model.f(X[k], U[k], dt) + w
+        Z[k] = model.h(X[k + 1]) + rng.multivariate_normal(zero, model.R)
+    return X, U, Z
+
+
+def wandering_heading(rng: np.random.Generator, psi0: float = 0.3):
+    """Controls ``k -> [psi_k, a_k]`` of the TAN studies: a heading that turns slowly with a
+    random walk (drawn from ``rng`` at each call, so call it once per step in order) and an
+    acceleration ``0.002 sin(0.02 k)`` m/s^2."""
+    psi = psi0
+
+    def controls(k: int) -> np.ndarray:
+        nonlocal psi
+        psi += 0.01 * np.sin(0.01 * k) + 0.002 * rng.standard_normal()
+        return np.array([psi, 0.002 * np.sin(0.02 * k)])
+
+    return controls

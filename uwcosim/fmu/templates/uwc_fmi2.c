@@ -108,57 +108,33 @@ fmi2Status fmi2Reset(fmi2Component c) {
     return (fmi2Status)uwc_reset(M);
 }
 
-fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                       fmi2Real value[]) {
-    if (c == NULL) return fmi2Error;
-    return (fmi2Status)uwc_get_real(M, vr, nvr, value);
-}
+/* ---- getters and setters: each written once, instantiated per type ---------------- */
 
-fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          fmi2Integer value[]) {
-    (void)vr;
-    (void)value;
-    return c == NULL ? fmi2Error : (fmi2Status)uwc_no_variables(M, "fmi2GetInteger", nvr);
-}
+/* types this FMU has variables of: forward to the core */
+#define FORWARD(fn, ctype, qual, impl)                                                       \
+    fmi2Status fn(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,               \
+                  qual ctype value[]) {                                                      \
+        if (c == NULL) return fmi2Error;                                                     \
+        return (fmi2Status)impl(M, vr, nvr, value);                                          \
+    }
 
-fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          fmi2Boolean value[]) {
-    (void)vr;
-    (void)value;
-    return c == NULL ? fmi2Error : (fmi2Status)uwc_no_variables(M, "fmi2GetBoolean", nvr);
-}
+/* types this FMU has no variables of */
+#define NO_VARIABLES(fn, ctype, qual)                                                        \
+    fmi2Status fn(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,               \
+                  qual ctype value[]) {                                                      \
+        (void)vr;                                                                            \
+        (void)value;                                                                         \
+        return c == NULL ? fmi2Error : (fmi2Status)uwc_no_variables(M, #fn, nvr);            \
+    }
 
-fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                         fmi2String value[]) {
-    if (c == NULL) return fmi2Error;
-    return (fmi2Status)uwc_get_string(M, vr, nvr, value);
-}
-
-fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                       const fmi2Real value[]) {
-    if (c == NULL) return fmi2Error;
-    return (fmi2Status)uwc_set_real(M, vr, nvr, value);
-}
-
-fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          const fmi2Integer value[]) {
-    (void)vr;
-    (void)value;
-    return c == NULL ? fmi2Error : (fmi2Status)uwc_no_variables(M, "fmi2SetInteger", nvr);
-}
-
-fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          const fmi2Boolean value[]) {
-    (void)vr;
-    (void)value;
-    return c == NULL ? fmi2Error : (fmi2Status)uwc_no_variables(M, "fmi2SetBoolean", nvr);
-}
-
-fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                         const fmi2String value[]) {
-    if (c == NULL) return fmi2Error;
-    return (fmi2Status)uwc_set_string(M, vr, nvr, value);
-}
+FORWARD(fmi2GetReal, fmi2Real, , uwc_get_real)
+FORWARD(fmi2GetString, fmi2String, , uwc_get_string)
+FORWARD(fmi2SetReal, fmi2Real, const, uwc_set_real)
+FORWARD(fmi2SetString, fmi2String, const, uwc_set_string)
+NO_VARIABLES(fmi2GetInteger, fmi2Integer, )
+NO_VARIABLES(fmi2GetBoolean, fmi2Boolean, )
+NO_VARIABLES(fmi2SetInteger, fmi2Integer, const)
+NO_VARIABLES(fmi2SetBoolean, fmi2Boolean, const)
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     if (c == NULL) return fmi2Error;

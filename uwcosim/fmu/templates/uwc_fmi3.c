@@ -140,33 +140,19 @@ static int same_n(uwc_inst *m, const char *fn, size_t nvr, size_t nvalues) {
     return 0;
 }
 
-fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                          size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
-    if (instance == NULL || !same_n(M, "fmi3GetFloat64", nValueReferences, nValues))
-        return fmi3Error;
-    return (fmi3Status)uwc_get_real(M, valueReferences, nValueReferences, values);
-}
+/* types this FMU has variables of: forward to the core after the size check */
+#define FORWARD(fn, ctype, qual, impl)                                                       \
+    fmi3Status fn(fmi3Instance instance, const fmi3ValueReference valueReferences[],        \
+                  size_t nValueReferences, qual ctype values[], size_t nValues) {            \
+        if (instance == NULL || !same_n(M, #fn, nValueReferences, nValues))                 \
+            return fmi3Error;                                                                \
+        return (fmi3Status)impl(M, valueReferences, nValueReferences, values);               \
+    }
 
-fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                          size_t nValueReferences, const fmi3Float64 values[], size_t nValues) {
-    if (instance == NULL || !same_n(M, "fmi3SetFloat64", nValueReferences, nValues))
-        return fmi3Error;
-    return (fmi3Status)uwc_set_real(M, valueReferences, nValueReferences, values);
-}
-
-fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                         size_t nValueReferences, fmi3String values[], size_t nValues) {
-    if (instance == NULL || !same_n(M, "fmi3GetString", nValueReferences, nValues))
-        return fmi3Error;
-    return (fmi3Status)uwc_get_string(M, valueReferences, nValueReferences, values);
-}
-
-fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                         size_t nValueReferences, const fmi3String values[], size_t nValues) {
-    if (instance == NULL || !same_n(M, "fmi3SetString", nValueReferences, nValues))
-        return fmi3Error;
-    return (fmi3Status)uwc_set_string(M, valueReferences, nValueReferences, values);
-}
+FORWARD(fmi3GetFloat64, fmi3Float64, , uwc_get_real)
+FORWARD(fmi3SetFloat64, fmi3Float64, const, uwc_set_real)
+FORWARD(fmi3GetString, fmi3String, , uwc_get_string)
+FORWARD(fmi3SetString, fmi3String, const, uwc_set_string)
 
 /* types this FMU has no variables of */
 #define NO_VARIABLES(fn, ctype, qual)                                                        \

@@ -46,7 +46,7 @@ log = logging.getLogger(__name__)
 FMI_VERSIONS = ("3.0", "2.0")
 TEMPLATE_DIR = Path(__file__).resolve().parent / "templates"
 TEMPLATE_FILES = ("uwc_model.h", "uwc_model.c", "uwc_map.h", "uwc_map.c", "uwc_fmi2.c",
-                  "uwc_fmi3.c")
+                  "uwc_fmi3.c", "uwc_fmi_common.h")
 CFLAGS = ("-shared", "-fPIC", "-O2", "-std=c99", "-fvisibility=hidden", "-ffp-contract=off",
           "-DCASADI_SYMBOL_EXPORT=")
 BUILD_INFO = "extra/uwcosim/build.json"

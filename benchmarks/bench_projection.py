@@ -47,7 +47,7 @@ def main(argv=None) -> int:
     rng = np.random.default_rng(args.seed)
     x0 = np.array([3000.0, 16000.0, 0.5, 0.0])
     n = args.steps
-    X, U, Z = simulate(model, x0, wandering_heading(rng), n, rng)
+    X, U, Z = simulate(model, x0, wandering_heading(rng), n, rng, noise="held")
     P0 = np.diag([args.sigma0**2, args.sigma0**2, 0.05**2, 0.05**2])
     xe0 = x0 + rng.standard_normal(4) * np.sqrt(np.diag(P0))
 

@@ -156,7 +156,7 @@ Q_PSD = [0.05, 0.05, 1e-4, 1e-4]
 def simulate_tan(model, n: int, rng: np.random.Generator, x0):
     """Truth of the model itself (:func:`~uwcosim.models.statespace.simulate`) on a wandering
     heading with a slowly varying acceleration."""
-    return simulate(model, x0, wandering_heading(rng), n, rng)
+    return simulate(model, x0, wandering_heading(rng), n, rng, noise="held")
 
 
 def run_filters(model, names, X, U, Z, x0, P0):

@@ -97,29 +97,40 @@ class CasadiModel:
         return np.asarray(hm(X.T)).T
 
 
-def simulate(model, x0, controls, steps: int, rng: np.random.Generator, dt: float = 1.0):
+def simulate(model, x0, controls, steps: int, rng: np.random.Generator, dt: float = 1.0,
+             noise: str = "cholesky"):
     """A truth trajectory of a filter model itself, without FMUs (for filter studies, tests and
     benchmarks): ``x_{k+1} = f(x_k, u_k) + w_k``, ``z_k = h(x_{k+1}) + v_k`` with
-    ``u_k = controls(k)`` (called once per step, before the step's noise is drawn: it may draw
-    from ``rng`` too), ``w_k = G diag(q_psd/dt)^(1/2) e`` for a model with ``FG`` and ``q_psd``
-    (noise held over the step: ``Q = G diag(q_psd/dt) G'``), else ``chol(Q) e``,
-    and ``v_k ~ N(0, R)``. Returns ``(X [steps+1, nx] from x0, U [steps, nu], Z [steps, nz])``.
+    ``u_k = controls(k)``, called once per step before the step's noise is drawn (it may draw
+    from ``rng`` too). Two ways of drawing the same noise distribution (for a diagonal ``R``):
+
+    - ``noise="cholesky"``: ``w_k = chol(Q(x_k, u_k)) e``, ``v_k = sqrt(diag R) e'``;
+    - ``noise="held"`` (a model with ``FG`` and ``q_psd``: the continuous noise held over the
+      step, ``Q = G diag(q_psd/dt) G'``): ``w_k = G diag(q_psd/dt)^(1/2) e``,
+      ``v_k ~ N(0, R)`` by ``rng.multivariate_normal``.
+
+    Returns ``(X [steps+1, nx] from x0, U [steps, nu], Z [steps, nz])``.
     """
+    if noise not in ("cholesky", "held"):
+        raise ValueError(f"noise must be 'cholesky' or 'held', not {noise!r}")
     X = np.zeros((steps + 1, model.nx))
     X[0] = x0
     U = np.zeros((steps, model.nu))
     Z = np.zeros((steps, model.nz))
+    r = np.sqrt(np.diag(model.R))
     zero = np.zeros(model.nz)
-    with_g = hasattr(model, "FG") and hasattr(model, "q_psd")
     for k in range(steps):
         U[k] = controls(k)
         e = rng.standard_normal(model.nx)
-        if with_g:
+        if noise == "held":
             w = model.FG(X[k], U[k], dt)[1] @ (e * np.sqrt(model.q_psd / dt))
         else:
             w = np.linalg.cholesky(model.Q(X[k], U[k], dt)) @ e
         X[k + 1] = model.f(X[k], U[k], dt) + w
-        Z[k] = model.h(X[k + 1]) + rng.multivariate_normal(zero, model.R)
+        if noise == "held":
+            Z[k] = model.h(X[k + 1]) + rng.multivariate_normal(zero, model.R)
+        else:
+            Z[k] = model.h(X[k + 1]) + r * rng.standard_normal(r.size)
     return X, U, Z
 
 

@@ -44,7 +44,8 @@ def controls(k: int) -> np.ndarray:
 
 def simulate(model, steps: int, seed: int = 1):
     rng = np.random.default_rng(seed)
-    xs, zs = simulate_model(model, START, controls, steps, rng)
+    X, _, zs = simulate_model(model, START, controls, steps, rng)
+    xs = X[1:]
     return xs, zs, START + STD0 * rng.standard_normal(4)
 
 

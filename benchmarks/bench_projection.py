@@ -40,23 +40,14 @@ def main(argv=None) -> int:
     from uwcosim.filters import point_mass, projection  # noqa: F401
     from uwcosim.filters.base import ESTIMATORS
     from uwcosim.models.bathymetry import synthetic_bathymetry
+    from uwcosim.models.statespace import simulate, wandering_heading
     from uwcosim.models.tan import tan_model
 
     model = tan_model([0.05, 0.05, 1e-4, 1e-4], 0.03, 2.0, terrain=synthetic_bathymetry(3))
     rng = np.random.default_rng(args.seed)
     x0 = np.array([3000.0, 16000.0, 0.5, 0.0])
     n = args.steps
-    X = np.zeros((n + 1, 4))
-    X[0] = x0
-    U = np.zeros((n, 2))
-    Z = np.zeros((n, model.nz))
-    psi = 0.3
-    for k in range(n):
-        psi += 0.01 * np.sin(0.01 * k) + 0.002 * rng.standard_normal()
-        U[k] = [psi, 0.002 * np.sin(0.02 * k)]
-        _, G = model.FG(X[k], U[k], 1.0)
-        X[k + 1] = model.f(X[k], U[k], 1.0) + G @ (rng.standard_normal(4) * np.sqrt(model.q_psd))
-        Z[k] = model.h(X[k + 1]) + rng.multivariate_normal(np.zeros(model.nz), model.R)
+    X, U, Z = simulate(model, x0, wandering_heading(rng), n, rng, noise="held")
     P0 = np.diag([args.sigma0**2, args.sigma0**2, 0.05**2, 0.05**2])
     xe0 = x0 + rng.standard_normal(4) * np.sqrt(np.diag(P0))
 

@@ -1,4 +1,5 @@
-"""Shared fixtures: the project's FMUs in fmus/ (built incrementally) and scenario helpers."""
+"""Shared fixtures: the project's FMUs in fmus/ (built incrementally, with the test model
+FaultInjector of tests/fault_injector.py) and scenario helpers."""
 
 from __future__ import annotations
 
@@ -9,10 +10,18 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
 
+try:
+    from fault_injector import register
+except ImportError:  # pragma: no cover - run from the project root as a package
+    from tests.fault_injector import register
+
+register()  # every FMU build of the test session includes FaultInjector
+
 
 @pytest.fixture(scope="session")
 def project_fmus() -> Path:
-    """``fmus/`` with every project FMU, built if missing or out of date (about 3 s)."""
+    """``fmus/`` with every project FMU and FaultInjector, built if missing or out of date
+    (about 3 s)."""
     from uwcosim.fmu.build import build_fmus
 
     build_fmus(ROOT / "fmus")

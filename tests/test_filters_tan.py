@@ -42,7 +42,8 @@ def controls(k: int) -> np.ndarray:
 def trajectory(model):
     """Truth from the CasADi model: x' = f(x, u) + w, w ~ N(0, Q); z = h(x) + v."""
     rng = np.random.default_rng(42)
-    xs, zs = simulate(model, START, controls, STEPS, rng)
+    X, _, zs = simulate(model, START, controls, STEPS, rng)
+    xs = X[1:]
     return xs, zs, START + STD0 * rng.standard_normal(4)
 
 

@@ -99,3 +99,13 @@ def test_run_example1_table_and_figures(tmp_path, capsys):
     assert result.max_error.shape == (10, 2)
     assert np.all(result.max_error[:, 1] < result.max_error[:, 0])
     assert len(result.figures) == 3 and all(p.is_file() for p in result.figures)
+
+
+def test_transfer_matrices_equal_the_one_dimensional_form():
+    """The batched re-projection equals :func:`transfer_matrix` of each dimension."""
+    lo, length = np.array([-3.0, 10.0]), np.array([8.0, 5.0])
+    lo2, length2 = np.array([-2.0, 9.0]), np.array([6.5, 7.0])
+    batched = po.transfer_matrices(4, lo, length, lo2, length2)
+    for d in range(2):
+        one = po.transfer_matrix(4, lo[d], length[d], lo2[d], length2[d])
+        np.testing.assert_allclose(batched[d], one, rtol=0, atol=1e-13)

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,6 +27,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from uwcosim.errors import ScenarioError
 from uwcosim.scenario.load import format_validation_error, load_scenario
+from uwcosim.tomlfile import read_toml
 
 
 class Variant(BaseModel):
@@ -113,18 +113,7 @@ def load_campaign(path: str | Path) -> LoadedCampaign:
     """Read and validate a campaign spec; every variant's scenario is validated too."""
     path = Path(path)
     where = str(path)
-    if not path.is_file():
-        raise ScenarioError(f"{where}: campaign file not found")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{where}: invalid TOML ({exc})") from None
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(f"{where}: not a UTF-8 text file (byte {exc.start}: {exc.reason})"
-                            ) from None
-    except OSError as exc:
-        raise ScenarioError(f"{where}: cannot read the campaign ({exc.strerror or exc})"
-                            ) from None
+    _, data = read_toml(path, "campaign", where)
     try:
         spec = CampaignSpec.model_validate(data)
     except ValidationError as exc:

@@ -65,7 +65,6 @@ class Estimator(ABC):
                 f"estimator {self.kind}: x0 must have {model.nx} elements and P0 be "
                 f"{model.nx}x{model.nx}, got {self.x.shape} and {self.P.shape}"
             )
-        self.diverged = False
         self.diagnostics: dict[str, float] = {}
         self.t = 0.0
 

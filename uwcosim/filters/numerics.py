@@ -115,12 +115,6 @@ def joseph_update(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) ->
     return symmetrize(IKH @ P @ IKH.T + K @ R @ K.T)
 
 
-def chol_solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``A^-1 B`` for symmetric PD ``A`` by Cholesky (repairing ``A`` if needed)."""
-    _, L = repair_pd(A)
-    return cho_solve((L, True), np.asarray(B, dtype=float))
-
-
 def psd_factor(Q: np.ndarray) -> np.ndarray:
     """A factor ``L`` with ``L L' = Q`` for a symmetric positive semi-definite ``Q``.
 
@@ -152,10 +146,3 @@ def linearize(model, x: np.ndarray, u, dt: float) -> tuple[np.ndarray, np.ndarra
         F, G = model.FG(x, u, dt)
         return F, (G * (model.q_psd / dt)) @ G.T  # Q = G diag(psd/dt) G'
     return model.F(x, u, dt), model.Q(x, u, dt)
-
-
-def weighted_moments(X: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Weighted mean and covariance of the rows of ``X`` (weights summing to one)."""
-    m = w @ X
-    D = X - m
-    return m, symmetrize((D.T * w) @ D)

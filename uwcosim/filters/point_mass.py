@@ -273,7 +273,6 @@ class PointMassFilter(Estimator):
             self.values = np.maximum(self.values, 0.0, out=self.values)
         mass = float(self.values.sum() * self._cell)
         if not np.isfinite(mass) or mass <= 0:
-            self.diverged = True
             raise FilterDivergence(f"{self.kind}: grid density lost its mass ({mass})")
         self.values /= mass
 

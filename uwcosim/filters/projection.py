@@ -172,7 +172,6 @@ class ProjectionFilter(Estimator):
         m *= 0.5
         mass = po.mass(m, self.basis)
         if not (math.isfinite(mass) and mass > 0):
-            self.diverged = True
             raise FilterDivergence(f"{self.kind}: density lost its mass ({mass})")
         self.m /= mass  # eqs. 40, 44, 48
         return mass

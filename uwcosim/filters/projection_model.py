@@ -456,6 +456,5 @@ def assemble_estimate(est) -> tuple[np.ndarray, np.ndarray]:
         x[est._ik] = est.kalman.mean
         P[est._kk] = est.kalman.cov
     if not np.isfinite(x.sum() + P.sum()):
-        est.diverged = True
         raise FilterDivergence(f"{est.kind}: non-finite estimate")
     return x, symmetrize(P)

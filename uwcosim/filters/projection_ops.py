@@ -165,11 +165,6 @@ def from_grid(values: np.ndarray, basis: SpectralBasis) -> np.ndarray:
     return m * scale
 
 
-def hermitian(m: np.ndarray) -> np.ndarray:
-    """Project onto real densities: ``(m + conj(m_{-q})) / 2``."""
-    return 0.5 * (m + np.conj(np.flip(m, axis=tuple(range(m.ndim)))))
-
-
 def axis_matrix(x: np.ndarray, lo: float, length: float, K: int) -> np.ndarray:
     """``E[n, q] = phi_q(x_n)`` in one dimension, zero outside ``[lo, lo + length]``."""
     s = np.asarray(x, dtype=float) - lo
@@ -339,12 +334,6 @@ def axes_moments(axes, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             m2 = w if n == 2 else w.sum(axis=tuple(i for i in range(n) if i not in (r, s)))
             cov[r, s] = cov[s, r] = dr @ m2 @ (axes[s] - mu[s])
     return mu, cov
-
-
-def _bcast(a: np.ndarray, d: int, n: int) -> np.ndarray:
-    shape = [1] * n
-    shape[d] = a.size
-    return a.reshape(shape)
 
 
 # ---------------------------------------------------------------------------------------------

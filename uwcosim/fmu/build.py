@@ -46,7 +46,7 @@ log = logging.getLogger(__name__)
 FMI_VERSIONS = ("3.0", "2.0")
 TEMPLATE_DIR = Path(__file__).resolve().parent / "templates"
 TEMPLATE_FILES = ("uwc_model.h", "uwc_model.c", "uwc_map.h", "uwc_map.c", "uwc_fmi2.c",
-                  "uwc_fmi3.c")
+                  "uwc_fmi3.c", "uwc_fmi_common.h")
 CFLAGS = ("-shared", "-fPIC", "-O2", "-std=c99", "-fvisibility=hidden", "-ffp-contract=off",
           "-DCASADI_SYMBOL_EXPORT=")
 BUILD_INFO = "extra/uwcosim/build.json"
@@ -127,6 +127,7 @@ class Sources:
     digest: str
     guid: str
     resources: dict[str, bytes] = field(default_factory=dict)
+    hooks: Path | None = None  # C source of a test model's hooks
 
 
 def prepare(model: str, fmi_version: str | int) -> Sources:
@@ -144,9 +145,12 @@ def prepare(model: str, fmi_version: str | int) -> Sources:
         h.update(name.encode() + b"\0" + (TEMPLATE_DIR / name).read_bytes() + b"\0")
     for name, data in sorted(resources.items()):
         h.update(name.encode() + b"\0" + hashlib.sha256(data).digest())
+    if spec.hooks is not None:
+        h.update(b"hooks\0" + Path(spec.hooks).read_bytes() + b"\0")
     guid = "{" + str(uuid.UUID(bytes=h.digest()[:16], version=5)) + "}"
     return Sources(model, version, eqs, config_header(spec, guid),
-                   model_description(spec, version, guid), h.hexdigest(), guid, resources)
+                   model_description(spec, version, guid), h.hexdigest(), guid, resources,
+                   spec.hooks)
 
 
 def compile_shared(sources: list[Path], out: Path, include_dirs: list[Path] = (),
@@ -211,6 +215,8 @@ def _build(src: Sources, out_path: Path) -> Path:
     wrapper = "uwc_fmi3.c" if src.fmi_version == "3.0" else "uwc_fmi2.c"
     sources = [work / "uwc_eqs.c"] + [TEMPLATE_DIR / n for n in ("uwc_model.c", "uwc_map.c",
                                                                  wrapper)]
+    if src.hooks is not None:
+        sources.append(Path(src.hooks))
     import fmpy
 
     binary = work / f"{src.model}{fmpy.sharedLibraryExtension}"

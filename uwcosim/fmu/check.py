@@ -157,12 +157,16 @@ def _settable(v) -> bool:
                               or v.initial in ("exact", "approx"))
 
 
-def closed_form(t, p0, v0, psi: float, a: float):
-    """Eq. (54) with constant heading and acceleration: positions at times ``t``."""
-    c, s = math.cos(psi), math.sin(psi)
-    px = v0[0] * t + 0.5 * a * c * t**2
-    py = v0[1] * t + 0.5 * a * s * t**2
-    return p0[0] + c * px - s * py, p0[1] + c * py + s * px
+def reference_positions(t: np.ndarray, p0, v0, psi: float, a: float):
+    """Positions of eq. (54) at times ``t`` from ``(p0, v0)`` with constant heading and
+    acceleration, from its one definition (:func:`~uwcosim.models.vehicle.vehicle_ode`; one RK4
+    step of any length is exact for it)."""
+    from uwcosim.models.vehicle import rk4_step, vehicle_ode
+
+    t = np.asarray(t, dtype=float)
+    x0 = np.array([p0[0], p0[1], v0[0], v0[1]], dtype=float)
+    X = np.array(rk4_step(vehicle_ode()).map(t.size)(x0, [psi, a], np.zeros(4), t))
+    return X[0], X[1]
 
 
 def smoke_run(path: Path, entries: dict, role: str, interface: str, duration: float,
@@ -230,7 +234,7 @@ def _judge(rows: np.ndarray, step: float, report: CheckReport) -> None:
         report.problems.append(f"smoke run: the position moves {ratio:.4g} times as far as the "
                                f"speed says (unit of x/y or vx/vy wrong? e.g. ft, knots)")
     t = step * np.arange(rows.shape[0])
-    xe, ye = closed_form(t, p[0], v[0], SMOKE_PSI, SMOKE_A)
+    xe, ye = reference_positions(t, p[0], v[0], SMOKE_PSI, SMOKE_A)
     d_ref = math.atan2(ye[-1] - ye[0], xe[-1] - xe[0])
     d_fmu = math.atan2(p[-1, 1] - p[0, 1], p[-1, 0] - p[0, 0])
     err = abs((d_fmu - d_ref + math.pi) % (2 * math.pi) - math.pi)

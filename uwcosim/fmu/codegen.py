@@ -80,7 +80,7 @@ def config_header(spec: ModelSpec, guid: str = GUID_PLACEHOLDER) -> str:
         f"#define UWC_SZ_W {size('sz_w')}",
         f"#define UWC_P_MAX_STEP {param_index.get('max_internal_step', -1)}",
         f"#define UWC_KIND_BATHY {int(spec.kind == 'bathymetry')}",
-        f"#define UWC_KIND_FAULTS {int(spec.kind == 'faults')}",
+        f"#define UWC_HOOKS {int(spec.hooks is not None)}",
     ]
     if spec.kind == "bathymetry":
         inputs = [v.name for v in spec.inputs]
@@ -90,13 +90,8 @@ def config_header(spec: ModelSpec, guid: str = GUID_PLACEHOLDER) -> str:
             f"#define UWC_S_MAPFILE {string_index['mapFile']}",
             f"#define UWC_BATHY_DEFAULT_MAP {_c_string(DEFAULT_MAP_FILE)}",
         ]
-    if spec.kind == "faults":
-        lines += [
-            f"#define UWC_P_FAIL {param_index['fail_time']}",
-            f"#define UWC_P_NAN {param_index['nan_time']}",
-            f"#define UWC_P_HANG {param_index['hang_time']}",
-            f"#define UWC_P_HANGSEC {param_index['hang_seconds']}",
-        ]
+    if spec.hooks is not None:  # a test model's C hooks find its parameters by name
+        lines += [f"#define UWC_P_{v.name.upper()} {i}" for i, v in enumerate(spec.params)]
     starts = ", ".join(_c_double(v.start if isinstance(v.start, float) else 0.0) for v in reals)
     names = ", ".join(_c_string(v.name) for v in reals)
     kinds = ", ".join(str(KIND_CODES[v.kind]) for v in reals)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import casadi as ca
 
@@ -71,10 +72,13 @@ class ModelSpec:
     strings: tuple[Var, ...] = ()  # String parameters
     externals: tuple[str, ...] = ()  # names of the z values
     external_deps: tuple[tuple[str, ...], ...] = ()  # inputs/strings each z depends on
-    kind: str = "generic"  # "generic" | "bathymetry" | "faults"
+    kind: str = "generic"  # "generic" | "bathymetry"
     stop_time: float = 10.0
     step_size: float = 0.1
     resources: tuple[str, ...] = field(default=())  # files generated into resources/
+    #: C source of ``uwc_hook_eval/outputs/step`` (see templates/uwc_model.h) compiled with
+    #: the model: test models only (tests/fault_injector.py); no shipped FMU has hooks
+    hooks: Path | None = None
 
     def functions(self) -> tuple[ca.Function, ca.Function]:
         """The CasADi functions ``ode(x, u, p)`` and ``out(x, u, p, z)``."""
@@ -196,10 +200,6 @@ def _depth_sounder(x, u, p, z):
     return ca.SX(0, 1), z[0] + u[2]
 
 
-def _fault_injector(x, u, p, z):
-    return ca.SX(0, 1), u[0]
-
-
 def _auv_spec() -> ModelSpec:
     return ModelSpec(
         name="AUVKinematics",
@@ -293,33 +293,11 @@ def _depth_sounder_spec() -> ModelSpec:
     )
 
 
-def _fault_injector_spec() -> ModelSpec:
-    never = 1e300
-    return ModelSpec(
-        name="FaultInjector",
-        description="Test model y = u that fails, outputs NaN or hangs at given times "
-                    "(time >= threshold, compared with a relative tolerance of 1e-9)",
-        equations=_fault_injector,
-        inputs=(Var("u", None, 0.0, "Input"),),
-        params=(
-            Var("fail_time", "s", never, "Calls return Error when time >= fail_time",
-                tunable=True),
-            Var("nan_time", "s", never, "Output is NaN when time >= nan_time", tunable=True),
-            Var("hang_time", "s", never, "doStep sleeps hang_seconds when time >= hang_time",
-                tunable=True),
-            Var("hang_seconds", "s", 3600.0, "Duration of the simulated hang", tunable=True),
-        ),
-        outputs=(Var("y", None, 0.0, "Output (= u)"),),
-        kind="faults",
-    )
-
-
 MODELS: dict[str, Callable[[], ModelSpec]] = {
     "AUVKinematics": _auv_spec,
     "DVL": _dvl_spec,
     "DepthSounder": _depth_sounder_spec,
     "ConstantVelocity": _cv_spec,
-    "FaultInjector": _fault_injector_spec,
 }
 
 

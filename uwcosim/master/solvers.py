@@ -34,6 +34,7 @@ import math
 import numpy as np
 
 from uwcosim.errors import FMUError
+from uwcosim.integrators import rk4
 
 #: event iterations allowed before the FMU is declared not converging
 MAX_EVENT_ITERATIONS = 1000
@@ -46,20 +47,6 @@ MAX_LOGGED_EVENTS = 100_000
 
 def _close(a: float, b: float) -> bool:
     return abs(a - b) <= 1e-12 * max(1.0, abs(a), abs(b))
-
-
-def rk4(deriv, x: np.ndarray, t: float, h: float, substeps: int) -> np.ndarray:
-    """``substeps`` classical Runge-Kutta steps of ``dx/dt = deriv(t, x)`` from ``t`` to
-    ``t + h``."""
-    dt = h / substeps
-    for i in range(substeps):
-        ti = t + i * dt
-        k1 = deriv(ti, x)
-        k2 = deriv(ti + dt / 2, x + dt / 2 * k1)
-        k3 = deriv(ti + dt / 2, x + dt / 2 * k2)
-        k4 = deriv(ti + dt, x + dt * k3)
-        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return x
 
 
 def dop853(deriv, x0: np.ndarray, t: float, h: float, rtol: float, name: str) -> np.ndarray:

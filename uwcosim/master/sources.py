@@ -30,8 +30,6 @@ def stream(seed: int, purpose: str) -> np.random.Generator:
 class TableControl:
     """A piecewise-linear (or held) table ``[[t, value], ...]``, constant beyond its ends."""
 
-    dynamic = False
-
     def __init__(self, spec: ControlSpec) -> None:
         table = np.asarray(spec.table, dtype=float)
         self.t, self.v = table[:, 0], table[:, 1]
@@ -54,8 +52,6 @@ class WaypointHeading:
     so it stays continuous; a waypoint is passed when the vehicle comes within
     ``acceptance_radius``. After the last one the heading is held.
     """
-
-    dynamic = True
 
     def __init__(self, spec: ControlSpec) -> None:
         self.points = np.asarray(spec.waypoints, dtype=float)
@@ -174,11 +170,6 @@ def white_noise(rng: np.random.Generator, n_steps: int, psd, h: float) -> np.nda
     return rng.standard_normal((n_steps, psd.size)) * np.sqrt(psd / h)
 
 
-def gaussian(rng: np.random.Generator, n_steps: int, sigma) -> np.ndarray:
-    sigma = np.asarray(sigma, dtype=float)
-    return rng.standard_normal((n_steps, sigma.size)) * sigma
-
-
 def loss_mask(
     rng: np.random.Generator, n: int, spec: BernoulliLoss | GilbertElliottLoss | None
 ) -> np.ndarray:
@@ -237,9 +228,6 @@ class Sensor:
     def received_at(self, k: int) -> bool:
         """Sampled and not lost at step ``k`` (steps are read in increasing order)."""
         return bool(self.mask.row(k)[0])
-
-    def sampled_at(self, k: int) -> bool:
-        return k > 0 and k % self.period == 0
 
 
 def sample_sources(system, controls: dict, slots: dict[str, int], seed: int, n: int,

@@ -23,11 +23,11 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from uwcosim.errors import ScenarioError
+from uwcosim.tomlfile import read_toml
 
 #: our units and the FMU units we convert: name -> (factor to the SI unit, SI unit)
 UNITS: dict[str, tuple[float, str]] = {
@@ -205,10 +205,7 @@ def load_entries(spec_map, base_dir: Path, where: str,
         p = p if p.is_absolute() else base_dir / p
         if not p.is_file():
             raise ScenarioError(f"{_key(where, prefix)}: variable map file {p} not found")
-        try:
-            raw = tomllib.loads(p.read_text(encoding="utf-8"))
-        except tomllib.TOMLDecodeError as exc:
-            raise ScenarioError(f"{p}: invalid TOML in the variable map ({exc})") from None
+        _, raw = read_toml(p, "variable map")
         return normalize_entries(raw, str(p)), str(p), ""
     return normalize_entries(dict(spec_map), where, prefix), where, prefix
 

@@ -70,10 +70,6 @@ def kind(var) -> str:
     return info[0] if info else "unsupported"
 
 
-def is_supported(var) -> bool:
-    return kind(var) != "unsupported"
-
-
 def numpy_dtype(var, fmi3: bool | None = None) -> np.dtype:
     """The numpy dtype of the variable's values (``object`` for strings)."""
     if fmi3 is None:  # unknown version: Real/Integer are FMI 2, the rest as in FMI 3 (wider)

@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import casadi as ca
 
+from uwcosim.integrators import rk4
+
 STATE_NAMES = ("x", "y", "vx", "vy")
 CONTROL_NAMES = ("psi", "a")
 NOISE_NAMES = ("w_x", "w_y", "w_vx", "w_vy")
@@ -58,12 +60,5 @@ def rk4_step(ode: ca.Function, substeps: int = 1) -> ca.Function:
     u = ca.SX.sym("u", ode.size1_in(1))
     w = ca.SX.sym("w", ode.size1_in(2))
     dt = ca.SX.sym("dt")
-    h = dt / substeps
-    xk = x
-    for _ in range(substeps):
-        k1 = ode(xk, u, w)
-        k2 = ode(xk + h / 2 * k1, u, w)
-        k3 = ode(xk + h / 2 * k2, u, w)
-        k4 = ode(xk + h * k3, u, w)
-        xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    xk = rk4(lambda _t, xx: ode(xx, u, w), x, 0.0, dt, substeps)
     return ca.Function("rk4_step", [x, u, w, dt], [xk], ["x", "u", "w", "dt"], ["xf"])

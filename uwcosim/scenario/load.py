@@ -19,6 +19,7 @@ from pydantic import BaseModel, ValidationError
 
 from uwcosim.errors import ScenarioError
 from uwcosim.scenario.schema import Scenario
+from uwcosim.tomlfile import read_toml
 
 
 @dataclass(frozen=True)
@@ -128,20 +129,7 @@ def read_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
 
         loaded = load_ssp(path, overrides)  # validated by its reader: spec set
         return {}, loaded
-    if not path.is_file():
-        raise ScenarioError(f"{where}: scenario file not found")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(f"{where}: not a UTF-8 text file (byte {exc.start}: {exc.reason})"
-                            ) from None
-    except OSError as exc:
-        raise ScenarioError(f"{where}: cannot read the scenario ({exc.strerror or exc})"
-                            ) from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{where}: invalid TOML ({exc})") from None
+    text, data = read_toml(path, "scenario", where)
     for keys, value in parse_overrides(overrides, where):
         _apply(data, keys, value, where)
     ssp = None

@@ -144,6 +144,15 @@ def run_example1(
     return result
 
 
+def _save(fig, path: Path) -> Path:
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
 def draw_figures(runs: list[Example1Run], out_dir: Path) -> list[Path]:
     """Figures 2-4 of the paper: solution against exact, error, RMS error (PNG)."""
     import matplotlib
@@ -167,10 +176,7 @@ def draw_figures(runs: list[Example1Run], out_dir: Path) -> list[Path]:
     axs[0].set_ylabel("u(x, t)")
     axs[1].legend(fontsize=7, ncol=2)
     fig.suptitle("Example 1 (eq. 52): Galerkin solution and exact solution (eq. 53)")
-    fig.tight_layout()
-    paths.append(out_dir / "example1_fig2_solution.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(_save(fig, out_dir / "example1_fig2_solution.png"))
 
     fig, axs = plt.subplots(1, 2, figsize=(11, 4.2))
     for run in runs:
@@ -185,10 +191,7 @@ def draw_figures(runs: list[Example1Run], out_dir: Path) -> list[Path]:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle("Example 1: estimation error of the projection (Figure 3)")
-    fig.tight_layout()
-    paths.append(out_dir / "example1_fig3_error.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(_save(fig, out_dir / "example1_fig3_error.png"))
 
     fig, ax = plt.subplots(figsize=(6, 4.2))
     for run in runs:
@@ -199,8 +202,5 @@ def draw_figures(runs: list[Example1Run], out_dir: Path) -> list[Path]:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     ax.set_title("Example 1: RMS error (Figure 4)")
-    fig.tight_layout()
-    paths.append(out_dir / "example1_fig4_rms.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(_save(fig, out_dir / "example1_fig4_rms.png"))
     return paths

@@ -11,6 +11,20 @@
 #define UNSUPPORTED(fn) \
     return instance == NULL ? fmi3Error : (fmi3Status)uwc_unsupported(M, fn)
 
+/* for uwc_fmi_common.h: the functions FMI 2.0 and 3.0 share */
+#define FMI(name) fmi3##name
+#define FMI_INSTANCE fmi3Instance
+#define FMI_FLOAT fmi3Float64
+#define FMI_FMUSTATE fmi3FMUState
+#define FMI_GET_FMUSTATE fmi3GetFMUState
+#define FMI_SET_FMUSTATE fmi3SetFMUState
+#define FMI_FREE_FMUSTATE fmi3FreeFMUState
+#define FMI_SERIALIZED_FMUSTATE_SIZE fmi3SerializedFMUStateSize
+#define FMI_SERIALIZE_FMUSTATE fmi3SerializeFMUState
+#define FMI_DESERIALIZE_FMUSTATE fmi3DeserializeFMUState
+#define FMI_GET_DERIVATIVES fmi3GetContinuousStateDerivatives
+#include "uwc_fmi_common.h"
+
 typedef struct {
     fmi3LogMessageCallback log_message;
 } callbacks3;
@@ -34,15 +48,6 @@ static uwc_inst *instantiate(fmi3String name, fmi3String token, fmi3String resou
 }
 
 const char *fmi3GetVersion(void) { return fmi3Version; }
-
-fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
-                               const fmi3String categories[]) {
-    (void)nCategories;
-    (void)categories;
-    if (instance == NULL) return fmi3Error;
-    M->logging_on = loggingOn ? 1 : 0;
-    return fmi3OK;
-}
 
 fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName,
                                           fmi3String instantiationToken,
@@ -91,14 +96,6 @@ fmi3Instance fmi3InstantiateScheduledExecution(
     return NULL;
 }
 
-void fmi3FreeInstance(fmi3Instance instance) {
-    void *cb;
-    if (instance == NULL) return;
-    cb = (void *)M->callbacks;
-    uwc_free(M);
-    free(cb);
-}
-
 fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined,
                                        fmi3Float64 tolerance, fmi3Float64 startTime,
                                        fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
@@ -110,27 +107,6 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
     return (fmi3Status)uwc_enter_init(M, startTime);
 }
 
-fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
-    if (instance == NULL) return fmi3Error;
-    return (fmi3Status)uwc_exit_init(M);
-}
-
-fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
-    CHECK("fmi3EnterEventMode", UWC_EVENT | UWC_CONT);
-    M->mode = UWC_EVENT;
-    return fmi3OK;
-}
-
-fmi3Status fmi3Terminate(fmi3Instance instance) {
-    if (instance == NULL) return fmi3Error;
-    return (fmi3Status)uwc_terminate(M);
-}
-
-fmi3Status fmi3Reset(fmi3Instance instance) {
-    if (instance == NULL) return fmi3Error;
-    return (fmi3Status)uwc_reset(M);
-}
-
 /* ---- getters and setters ------------------------------------------------------------ */
 
 static int same_n(uwc_inst *m, const char *fn, size_t nvr, size_t nvalues) {
@@ -140,33 +116,19 @@ static int same_n(uwc_inst *m, const char *fn, size_t nvr, size_t nvalues) {
     return 0;
 }
 
-fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                          size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
-    if (instance == NULL || !same_n(M, "fmi3GetFloat64", nValueReferences, nValues))
-        return fmi3Error;
-    return (fmi3Status)uwc_get_real(M, valueReferences, nValueReferences, values);
-}
+/* types this FMU has variables of: forward to the core after the size check */
+#define FORWARD(fn, ctype, qual, impl)                                                       \
+    fmi3Status fn(fmi3Instance instance, const fmi3ValueReference valueReferences[],        \
+                  size_t nValueReferences, qual ctype values[], size_t nValues) {            \
+        if (instance == NULL || !same_n(M, #fn, nValueReferences, nValues))                 \
+            return fmi3Error;                                                                \
+        return (fmi3Status)impl(M, valueReferences, nValueReferences, values);               \
+    }
 
-fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                          size_t nValueReferences, const fmi3Float64 values[], size_t nValues) {
-    if (instance == NULL || !same_n(M, "fmi3SetFloat64", nValueReferences, nValues))
-        return fmi3Error;
-    return (fmi3Status)uwc_set_real(M, valueReferences, nValueReferences, values);
-}
-
-fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                         size_t nValueReferences, fmi3String values[], size_t nValues) {
-    if (instance == NULL || !same_n(M, "fmi3GetString", nValueReferences, nValues))
-        return fmi3Error;
-    return (fmi3Status)uwc_get_string(M, valueReferences, nValueReferences, values);
-}
-
-fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                         size_t nValueReferences, const fmi3String values[], size_t nValues) {
-    if (instance == NULL || !same_n(M, "fmi3SetString", nValueReferences, nValues))
-        return fmi3Error;
-    return (fmi3Status)uwc_set_string(M, valueReferences, nValueReferences, values);
-}
+FORWARD(fmi3GetFloat64, fmi3Float64, , uwc_get_real)
+FORWARD(fmi3SetFloat64, fmi3Float64, const, uwc_set_real)
+FORWARD(fmi3GetString, fmi3String, , uwc_get_string)
+FORWARD(fmi3SetString, fmi3String, const, uwc_set_string)
 
 /* types this FMU has no variables of */
 #define NO_VARIABLES(fn, ctype, qual)                                                        \
@@ -261,74 +223,53 @@ fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference
     UNSUPPORTED("fmi3GetVariableDependencies");
 }
 
-/* ---- FMU state ---------------------------------------------------------------------- */
-
-fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
-    if (instance == NULL) return fmi3Error;
-    return (fmi3Status)uwc_state_get(M, FMUState);
-}
-
-fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
-    if (instance == NULL) return fmi3Error;
-    return (fmi3Status)uwc_state_set(M, FMUState);
-}
-
-fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
-    if (instance == NULL) return fmi3Error;
-    return (fmi3Status)uwc_state_free(M, FMUState);
-}
-
-fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState,
-                                      size_t *size) {
-    (void)FMUState;
-    if (instance == NULL) return fmi3Error;
-    *size = uwc_state_size();
-    return fmi3OK;
-}
-
-fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState,
-                                 fmi3Byte serializedState[], size_t size) {
-    if (instance == NULL) return fmi3Error;
-    return (fmi3Status)uwc_state_serialize(M, FMUState, serializedState, size);
-}
-
-fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[],
-                                   size_t size, fmi3FMUState *FMUState) {
-    if (instance == NULL) return fmi3Error;
-    return (fmi3Status)uwc_state_deserialize(M, serializedState, size, FMUState);
-}
-
 /* ---- unsupported optional features -------------------------------------------------- */
 
-fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[],
-                                        size_t nUnknowns, const fmi3ValueReference knowns[],
-                                        size_t nKnowns, const fmi3Float64 seed[], size_t nSeed,
-                                        fmi3Float64 sensitivity[], size_t nSensitivity) {
-    (void)unknowns;
-    (void)nUnknowns;
-    (void)knowns;
-    (void)nKnowns;
-    (void)seed;
-    (void)nSeed;
-    (void)sensitivity;
-    (void)nSensitivity;
-    UNSUPPORTED("fmi3GetDirectionalDerivative");
-}
+/* derivatives: the same arguments for both */
+#define UNSUPPORTED_DERIVATIVE(fn)                                                           \
+    fmi3Status fn(fmi3Instance instance, const fmi3ValueReference unknowns[],                \
+                  size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns,       \
+                  const fmi3Float64 seed[], size_t nSeed, fmi3Float64 sensitivity[],         \
+                  size_t nSensitivity) {                                                     \
+        (void)unknowns;                                                                      \
+        (void)nUnknowns;                                                                     \
+        (void)knowns;                                                                        \
+        (void)nKnowns;                                                                       \
+        (void)seed;                                                                          \
+        (void)nSeed;                                                                         \
+        (void)sensitivity;                                                                   \
+        (void)nSensitivity;                                                                  \
+        UNSUPPORTED(#fn);                                                                    \
+    }
 
-fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[],
-                                    size_t nUnknowns, const fmi3ValueReference knowns[],
-                                    size_t nKnowns, const fmi3Float64 seed[], size_t nSeed,
-                                    fmi3Float64 sensitivity[], size_t nSensitivity) {
-    (void)unknowns;
-    (void)nUnknowns;
-    (void)knowns;
-    (void)nKnowns;
-    (void)seed;
-    (void)nSeed;
-    (void)sensitivity;
-    (void)nSensitivity;
-    UNSUPPORTED("fmi3GetAdjointDerivative");
-}
+UNSUPPORTED_DERIVATIVE(fmi3GetDirectionalDerivative)
+UNSUPPORTED_DERIVATIVE(fmi3GetAdjointDerivative)
+
+/* clock intervals and shifts: value references and one, two or three arrays */
+#define CLOCK_HEAD(fn)                                                                       \
+    fmi3Status fn(fmi3Instance instance, const fmi3ValueReference valueReferences[],        \
+                  size_t nValueReferences
+#define CLOCK_BODY(fn, unused)                                                               \
+    {                                                                                        \
+        (void)valueReferences;                                                               \
+        (void)nValueReferences;                                                              \
+        unused;                                                                              \
+        UNSUPPORTED(#fn);                                                                    \
+    }
+#define UNSUPPORTED_CLOCK1(fn, T1) CLOCK_HEAD(fn), T1 a[]) CLOCK_BODY(fn, (void)a)
+#define UNSUPPORTED_CLOCK2(fn, T1, T2) \
+    CLOCK_HEAD(fn), T1 a[], T2 b[]) CLOCK_BODY(fn, (void)a; (void)b)
+#define UNSUPPORTED_CLOCK3(fn, T1, T2, T3) \
+    CLOCK_HEAD(fn), T1 a[], T2 b[], T3 c[]) CLOCK_BODY(fn, (void)a; (void)b; (void)c)
+
+UNSUPPORTED_CLOCK2(fmi3GetIntervalDecimal, fmi3Float64, fmi3IntervalQualifier)
+UNSUPPORTED_CLOCK3(fmi3GetIntervalFraction, fmi3UInt64, fmi3UInt64, fmi3IntervalQualifier)
+UNSUPPORTED_CLOCK1(fmi3GetShiftDecimal, fmi3Float64)
+UNSUPPORTED_CLOCK2(fmi3GetShiftFraction, fmi3UInt64, fmi3UInt64)
+UNSUPPORTED_CLOCK1(fmi3SetIntervalDecimal, const fmi3Float64)
+UNSUPPORTED_CLOCK2(fmi3SetIntervalFraction, const fmi3UInt64, const fmi3UInt64)
+UNSUPPORTED_CLOCK1(fmi3SetShiftDecimal, const fmi3Float64)
+UNSUPPORTED_CLOCK2(fmi3SetShiftFraction, const fmi3UInt64, const fmi3UInt64)
 
 fmi3Status fmi3EnterConfigurationMode(fmi3Instance instance) {
     UNSUPPORTED("fmi3EnterConfigurationMode");
@@ -336,85 +277,6 @@ fmi3Status fmi3EnterConfigurationMode(fmi3Instance instance) {
 
 fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance) {
     UNSUPPORTED("fmi3ExitConfigurationMode");
-}
-
-fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance,
-                                  const fmi3ValueReference valueReferences[],
-                                  size_t nValueReferences, fmi3Float64 intervals[],
-                                  fmi3IntervalQualifier qualifiers[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)intervals;
-    (void)qualifiers;
-    UNSUPPORTED("fmi3GetIntervalDecimal");
-}
-
-fmi3Status fmi3GetIntervalFraction(fmi3Instance instance,
-                                   const fmi3ValueReference valueReferences[],
-                                   size_t nValueReferences, fmi3UInt64 counters[],
-                                   fmi3UInt64 resolutions[], fmi3IntervalQualifier qualifiers[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)counters;
-    (void)resolutions;
-    (void)qualifiers;
-    UNSUPPORTED("fmi3GetIntervalFraction");
-}
-
-fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                               size_t nValueReferences, fmi3Float64 shifts[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)shifts;
-    UNSUPPORTED("fmi3GetShiftDecimal");
-}
-
-fmi3Status fmi3GetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                                size_t nValueReferences, fmi3UInt64 counters[],
-                                fmi3UInt64 resolutions[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)counters;
-    (void)resolutions;
-    UNSUPPORTED("fmi3GetShiftFraction");
-}
-
-fmi3Status fmi3SetIntervalDecimal(fmi3Instance instance,
-                                  const fmi3ValueReference valueReferences[],
-                                  size_t nValueReferences, const fmi3Float64 intervals[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)intervals;
-    UNSUPPORTED("fmi3SetIntervalDecimal");
-}
-
-fmi3Status fmi3SetIntervalFraction(fmi3Instance instance,
-                                   const fmi3ValueReference valueReferences[],
-                                   size_t nValueReferences, const fmi3UInt64 counters[],
-                                   const fmi3UInt64 resolutions[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)counters;
-    (void)resolutions;
-    UNSUPPORTED("fmi3SetIntervalFraction");
-}
-
-fmi3Status fmi3SetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                               size_t nValueReferences, const fmi3Float64 shifts[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)shifts;
-    UNSUPPORTED("fmi3SetShiftDecimal");
-}
-
-fmi3Status fmi3SetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                                size_t nValueReferences, const fmi3UInt64 counters[],
-                                const fmi3UInt64 resolutions[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)counters;
-    (void)resolutions;
-    UNSUPPORTED("fmi3SetShiftFraction");
 }
 
 fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance instance) {
@@ -438,60 +300,6 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
 }
 
 /* ---- model exchange ----------------------------------------------------------------- */
-
-fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) {
-    CHECK("fmi3EnterContinuousTimeMode", UWC_EVENT);
-    M->mode = UWC_CONT;
-    return fmi3OK;
-}
-
-fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance,
-                                       fmi3Boolean noSetFMUStatePriorToCurrentPoint,
-                                       fmi3Boolean *enterEventMode,
-                                       fmi3Boolean *terminateSimulation) {
-    (void)noSetFMUStatePriorToCurrentPoint;
-    CHECK("fmi3CompletedIntegratorStep", UWC_CONT);
-    *enterEventMode = fmi3False;
-    *terminateSimulation = fmi3False;
-    return fmi3OK;
-}
-
-fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) {
-    if (instance == NULL) return fmi3Error;
-    return (fmi3Status)uwc_set_time(M, time);
-}
-
-fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
-                                   size_t nContinuousStates) {
-    if (instance == NULL) return fmi3Error;
-    return (fmi3Status)uwc_set_states(M, continuousStates, nContinuousStates);
-}
-
-fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
-                                             size_t nContinuousStates) {
-    if (instance == NULL) return fmi3Error;
-    return (fmi3Status)uwc_get_derivatives(M, derivatives, nContinuousStates);
-}
-
-fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[],
-                                  size_t nEventIndicators) {
-    (void)eventIndicators;
-    return instance == NULL
-               ? fmi3Error
-               : (fmi3Status)uwc_no_variables(M, "fmi3GetEventIndicators", nEventIndicators);
-}
-
-fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[],
-                                   size_t nContinuousStates) {
-    if (instance == NULL) return fmi3Error;
-    return (fmi3Status)uwc_get_states(M, continuousStates, nContinuousStates);
-}
-
-fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[],
-                                             size_t nContinuousStates) {
-    if (instance == NULL) return fmi3Error;
-    return (fmi3Status)uwc_get_nominals(M, nominals, nContinuousStates);
-}
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators) {
     if (instance == NULL) return fmi3Error;

@@ -1,5 +1,6 @@
 /* uwc_model.c - model core of the uwcosim FMUs: variables, evaluation of the CasADi
- * equations, fixed-step RK4 co-simulation step, terrain kernel and fault hooks, FMU state.
+ * equations, fixed-step RK4 co-simulation step, terrain kernel, hooks of test models, FMU
+ * state.
  * FMI-version independent; uwc_fmi2.c / uwc_fmi3.c map the FMI API onto these functions.
  * No mutable globals: several instances in one process are independent.
  */
@@ -10,17 +11,11 @@
 #include "uwc_model.h"
 
 #include <ctype.h>
-#include <errno.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _WIN32
-#include <windows.h>
-#else
-#include <time.h>
-#endif
 
 /* CasADi generated equations (uwc_eqs.c) */
 int ode(const double **arg, double **res, long long int *iw, double *w, int mem);
@@ -235,45 +230,6 @@ static int ensure_map(uwc_inst *m) {
     return UWC_OK;
 }
 
-/* ---- fault injection (FaultInjector) ------------------------------------------------- */
-
-#if UWC_KIND_FAULTS
-static int reached(double t, double threshold) {
-    return t >= threshold - 1e-9 * fmax(1.0, fabs(threshold));
-}
-
-static void sleep_seconds(double s) {
-#ifdef _WIN32
-    while (s > 0) {
-        double chunk = s > 1000.0 ? 1000.0 : s;
-        Sleep((DWORD)(chunk * 1000.0));
-        s -= chunk;
-    }
-#else
-    struct timespec req, rem;
-    if (!(s > 0)) return;
-    req.tv_sec = (time_t)s;
-    req.tv_nsec = (long)((s - (double)req.tv_sec) * 1e9);
-    while (nanosleep(&req, &rem) != 0 && errno == EINTR) req = rem;
-#endif
-}
-
-static int faults(uwc_inst *m, double t, int may_hang) {
-    const double *p = m->r + UWC_OFF_P;
-    if (reached(t, p[UWC_P_FAIL])) {
-        uwc_log(m, UWC_ERROR, "%s: injected failure at time t = %.15g (fail_time = %.15g)",
-                m->name, t, p[UWC_P_FAIL]);
-        return fail(m);
-    }
-    if (may_hang && reached(t, p[UWC_P_HANG])) {
-        uwc_log(m, UWC_WARNING, "%s: injected hang of %g s at time t = %.15g", m->name,
-                p[UWC_P_HANGSEC], t);
-        sleep_seconds(p[UWC_P_HANGSEC]);
-    }
-    return UWC_OK;
-}
-#endif
-
 /* ---- equations ---------------------------------------------------------------------- */
 
 static int f_ode(uwc_inst *m, const double *x, double *xdot) {
@@ -285,10 +241,9 @@ static int f_ode(uwc_inst *m, const double *x, double *xdot) {
 }
 
 static int eval(uwc_inst *m) {
-    int k;
     if (!m->dirty) return UWC_OK;
-#if UWC_KIND_FAULTS
-    if (faults(m, m->r[0], !m->is_cs) != UWC_OK) return UWC_ERROR;
+#if UWC_HOOKS
+    if (uwc_hook_eval(m) != UWC_OK) return fail(m);
 #endif
 #if UWC_KIND_BATHY
     {
@@ -318,12 +273,9 @@ static int eval(uwc_inst *m) {
         uwc_log(m, UWC_ERROR, "%s: evaluation of the outputs failed", m->name);
         return fail(m);
     }
-#if UWC_KIND_FAULTS
-    if (reached(m->r[0], m->r[UWC_OFF_P + UWC_P_NAN])) {
-        for (k = 0; k < UWC_NY; k++) m->r[UWC_OFF_Y + k] = NAN;
-    }
+#if UWC_HOOKS
+    uwc_hook_outputs(m);
 #endif
-    (void)k;
     m->dirty = 0;
     return UWC_OK;
 }
@@ -482,8 +434,8 @@ int uwc_do_step(uwc_inst *m, double t, double h) {
     }
     m->r[0] = t;
     m->dirty = 1;
-#if UWC_KIND_FAULTS
-    if (faults(m, t, 1) != UWC_OK) return UWC_ERROR;
+#if UWC_HOOKS
+    if (uwc_hook_step(m, t) != UWC_OK) return fail(m);
 #endif
 #if UWC_NX > 0
     {

@@ -95,6 +95,14 @@ int uwc_no_variables(uwc_inst *m, const char *fn, size_t n);
 /* co-simulation */
 int uwc_do_step(uwc_inst *m, double t, double h);
 
+/* hooks of a test model (UWC_HOOKS = 1: the spec's C source defines them; none of the shipped
+ * FMUs has hooks). UWC_OK or UWC_ERROR (the instance then fails, as on an evaluation error). */
+#if UWC_HOOKS
+int uwc_hook_eval(uwc_inst *m);           /* before the equations are evaluated */
+void uwc_hook_outputs(uwc_inst *m);       /* after the outputs are computed */
+int uwc_hook_step(uwc_inst *m, double t); /* at the start of doStep from t */
+#endif
+
 /* model exchange */
 int uwc_set_time(uwc_inst *m, double t);
 int uwc_set_states(uwc_inst *m, const double x[], size_t n);

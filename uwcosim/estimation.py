@@ -19,7 +19,7 @@ import numpy as np
 
 from uwcosim.errors import FilterDivergence, ScenarioError
 from uwcosim.filters import ESTIMATORS, Estimator
-from uwcosim.master.sources import ChunkedTable, gaussian_drawer, stream
+from uwcosim.master.sources import stream
 
 
 @dataclass
@@ -55,35 +55,7 @@ class EstimatorBank:
              else self._bad(f"model.controls: unknown control {c!r} "
                             f"(controls: {', '.join(spec.controls)})")
              for c in mspec.controls], dtype=np.intp)
-        names, slots, sensor_of = [], [], []
-        for sname in mspec.sensors:
-            sensor = master.sensors.get(sname)
-            if sensor is None:
-                self._bad(f"model.sensors: unknown sensor {sname!r} "
-                          f"(sensors: {', '.join(master.sensors)})")
-            names += sensor.outputs
-            slots += list(sensor.slots)
-            sensor_of += [sname] * len(sensor.outputs)
-        self.meas_slots = np.array(slots, dtype=np.intp)
-        self._z_step = -1
-        # sensors with sigma but no noise inputs: the master's stream adds the noise here
-        # (drawn in chunks as the run goes, as the master's sources)
-        n = master.n_steps + 1
-        makers = []
-        for sname in mspec.sensors:
-            s = spec.sensors[sname]
-            if s.sigma and not s.noise_inputs:
-                if len(s.sigma) != len(s.outputs):
-                    self._bad(f"sensors.{sname}.sigma: additive noise needs one sigma per "
-                              f"output ({len(s.outputs)})")
-                makers.append(lambda sname=sname, s=s: gaussian_drawer(
-                    stream(master.seed, f"sensor-noise:{sname}"), s.sigma))
-            else:
-                makers.append(lambda w=len(s.outputs):
-                              lambda k0, m: np.zeros((m, w)))
-        self.additive = ChunkedTable(n, makers, len(slots))
-        self.sensor_of = sensor_of
-        self._sensors = [master.sensors[s] for s in sensor_of]
+        sensor_of = master.sensors.sensor_of  # the model's sensors (System.measured)
         x_true0 = master.bus[self.truth_slots]
         est_common = spec.estimation
         bound = est_common.position_bound if est_common is not None else None
@@ -119,21 +91,10 @@ class EstimatorBank:
     def _bad(self, msg: str):
         raise ScenarioError(f"{self.where}: key '{msg.split(':')[0]}':{msg.split(':', 1)[1]}")
 
-    def measurements(self, master) -> tuple[np.ndarray, np.ndarray]:
-        """``(z, received)`` at the master's current step; z is NaN where not received.
-
-        Computed once per step (the estimators and the logger both read it)."""
-        if self._z_step != master.k:
-            k = master.k
-            rec = np.array([s.received_at(k) for s in self._sensors], dtype=bool)
-            self._z = np.where(rec, master.bus[self.meas_slots] + self.additive.row(k),
-                               np.nan), rec
-            self._z_step = master.k
-        return self._z
-
     def __call__(self, master) -> None:
         u = master.bus[self.control_slots]
-        z, rec = self.measurements(master)
+        meas = master.measurement()
+        z, rec = meas.z, meas.received
         t = master.t
         for tr in self.tracks:
             if tr.diverged_at is not None:
@@ -161,7 +122,8 @@ class EstimatorBank:
                 tr.nees = float("nan")
 
     def nees(self, est: Estimator, master) -> float:
-        """``e' P^-1 e`` with ``e = x_true - x`` (NaN if ``P`` is singular)."""
+        """NEES of ``est`` against the truth on the bus (:func:`uwcosim.evaluation.metrics.nees`:
+        NaN when ``P`` is not positive definite)."""
         e = master.bus[self.truth_slots] - est.x
         try:
             return float(e @ np.linalg.solve(est.P, e))

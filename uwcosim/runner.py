@@ -66,7 +66,7 @@ class _LogHook:
         self.exact = list(exact_slots)
         self.width = 1 + len(signal_slots)
         if bank:
-            self.width += len(bank.meas_slots) + len(bank.tracks) * (2 * model.nx + 2)
+            self.width += len(master.sensors.names) + len(bank.tracks) * (2 * model.nx + 2)
         self.row = np.empty(self.width)
         self.n_flags = len(logger.bool_columns)
 
@@ -77,10 +77,10 @@ class _LogHook:
         row[1:i] = master.bus[self.sig]
         flags = []
         if self.bank:
-            z, rec = self.bank.measurements(master)
-            row[i:i + z.size] = z
-            i += z.size
-            flags = [bool(r) for r in rec]
+            meas = master.measurement()
+            row[i:i + meas.z.size] = meas.z
+            i += meas.z.size
+            flags = [bool(r) for r in meas.received]
             nx = self.model.nx
             for tr in self.bank.tracks:
                 if tr.diverged_at is None:
@@ -119,8 +119,8 @@ def _columns(master: Master, bank, model) -> tuple[list[str], list[int], list[st
     cols = list(names)
     flags = []
     if bank:
-        cols += [f"z.{n}" for n in model.measurement_names]
-        flags += [f"z.{n}.received" for n in model.measurement_names]
+        cols += [f"z.{n}" for n in master.sensors.names]
+        flags += [f"z.{n}.received" for n in master.sensors.names]
         for tr in bank.tracks:
             cols += [f"est.{tr.name}.{s}" for s in model.state_names]
             cols += [f"est.{tr.name}.var.{s}" for s in model.state_names]

@@ -42,13 +42,12 @@ from uwcosim.errors import FMUError, ScenarioError
 from uwcosim.master import vartypes
 from uwcosim.master.adapter import Binding, FMUAdapter
 from uwcosim.master.graph import stepping_order
+from uwcosim.master.measurement import Measurement, SensorBank
 from uwcosim.master.proxy import ProxyAdapter
 from uwcosim.master.sources import (
-    Sensor,
     StageInputs,
     TableControl,
     WaypointHeading,
-    build_sensors,
     control_problem,
     sample_sources,
 )
@@ -213,7 +212,6 @@ class Master:
                                deps)
         self.nodes: list[_Node] = [self._node(name) for name in order]
         self._sample_sources()
-        self.sensors = self._build_sensors()
 
     def _node(self, name: str) -> _Node:
         ad = self.adapters[name]
@@ -327,15 +325,28 @@ class Master:
         return StageInputs(pairs) if pairs else None
 
     def _sample_sources(self) -> None:
+        """The seeded sources of a run: controls, noise, and the sensors (:attr:`sensors`)."""
+        system, n = self.system, self.n_steps + 1
         self.sources, self.source_slots, self.dynamic = sample_sources(
-            self.system, self.controls, self.slots, self.seed, self.n_steps + 1,
-            skip=self.noise_free)
-
-    def _build_sensors(self) -> dict[str, Sensor]:
-        slots = {sname: np.array([self._numeric_slot(o, f"sensors.{sname}.outputs")
-                                  for o in s.outputs], dtype=np.intp)
-                 for sname, s in self.system.sensors.items()}
-        return build_sensors(self.system, slots, self.seed, self.n_steps + 1)
+            system, self.controls, self.slots, self.seed, n, skip=self.noise_free)
+        outputs = {sname: np.array([self._numeric_slot(o, f"sensors.{sname}.outputs")
+                                    for o in s.outputs], dtype=np.intp)
+                   for sname, s in system.sensors.items()}
+        inputs = {sname: [self.slots[f"sensornoise.{sname}.{i}"]
+                          for i in range(len(s.noise_inputs))]
+                  for sname, s in system.sensors.items()}
+        measured = list(system.sensors) if system.measured is None else list(system.measured)
+        key = "model.sensors" if self.spec is not None else "measured"
+        for sname in measured:
+            s = system.sensors.get(sname)
+            if s is None:
+                raise ScenarioError(f"{self._where(key)}: unknown sensor {sname!r} "
+                                    f"(sensors: {', '.join(system.sensors)})")
+            if s.sigma and not s.noise_inputs and len(s.sigma) != len(s.outputs):
+                raise ScenarioError(f"{self._where(f'sensors.{sname}.sigma')}: additive noise "
+                                    f"needs one sigma per output ({len(s.outputs)})")
+        #: sampling, loss, noise and assembly of the measurements
+        self.sensors = SensorBank(system.sensors, outputs, inputs, measured, self.seed, n)
 
     def reset(self, seed: int | None = None) -> None:
         """Prepare another run of the same system (``seed`` or the system's): new noise,
@@ -345,7 +356,6 @@ class Master:
             if isinstance(ctl, WaypointHeading):
                 ctl.reset()
         self._sample_sources()
-        self.sensors = self._build_sensors()
         self.bus[:] = 0.0
         self.text.clear()
         self.native.clear()
@@ -363,6 +373,11 @@ class Master:
 
     def signals(self, names: list[str]) -> np.ndarray:
         return self.bus[[self.slots[n] for n in names]]
+
+    def measurement(self) -> Measurement:
+        """The measurement of the current step (:class:`~uwcosim.master.measurement.SensorBank`:
+        the measured sensors' outputs with their noise, NaN where not received)."""
+        return self.sensors.measure(self.k, self.t, self.bus)
 
     def value(self, name: str):
         """The current value of a signal as its own type (str, int, bool or float)."""
@@ -424,6 +439,7 @@ class Master:
 
     def _load_sources(self, k: int) -> None:
         self.bus[self.source_slots] = self.sources.row(k)
+        self.sensors.load_inputs(k, self.bus)
         for slot, ctl in self.dynamic:
             x, y = self.bus[ctl.pos_slots]
             self.bus[slot] = ctl.value_at(x, y)

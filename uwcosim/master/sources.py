@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -224,28 +223,11 @@ class StageInputs:
             view[j] = ctl.value(t)
 
 
-@dataclass
-class Sensor:
-    """A group of FMU outputs measured together, with its sampling and loss."""
-
-    name: str
-    outputs: list[str]
-    slots: np.ndarray
-    period: int
-    mask: ChunkedTable  # column 0: sampled and not lost at step k
-
-    def received_at(self, k: int) -> bool:
-        """Sampled and not lost at step ``k`` (steps are read in increasing order)."""
-        return bool(self.mask.row(k)[0])
-
-    def sampled_at(self, k: int) -> bool:
-        return k > 0 and k % self.period == 0
-
-
 def sample_sources(system, controls: dict, slots: dict[str, int], seed: int, n: int,
                    skip=()):
-    """The open-loop sources of ``system`` on the ``n`` grid points, drawn in chunks from the
-    seed's streams: ``(ChunkedTable [n, m], bus slots [m], [(slot, closed-loop control)])``.
+    """The open-loop controls and noise of ``system`` on the ``n`` grid points, drawn in chunks
+    from the seed's streams (the sensors' noise: :mod:`uwcosim.master.measurement`):
+    ``(ChunkedTable [n, m], bus slots [m], [(slot, closed-loop control)])``.
     Noise sources named in ``skip`` are left out (a truth FMU without their inputs)."""
     t0, h = system.start_time, system.step
     makers, where = [], []
@@ -260,31 +242,7 @@ def sample_sources(system, controls: dict, slots: dict[str, int], seed: int, n: 
         makers.append(lambda nname=nname, nz=nz: noise_drawer(
             stream(seed, f"noise:{nname}"), nz.psd, h))
         where.append([slots[f"noise.{nname}.{i}"] for i in range(len(nz.targets))])
-    for sname, s in system.sensors.items():
-        if s.noise_inputs:
-            makers.append(lambda sname=sname, s=s: gaussian_drawer(
-                stream(seed, f"sensor-noise:{sname}"), s.sigma))
-            where.append([slots[f"sensornoise.{sname}.{i}"] for i in range(len(s.noise_inputs))])
     flat = np.array([s for group in where for s in group], dtype=np.intp)
     dynamic = [(slots[f"controls.{c}"], ctl) for c, ctl in controls.items()
                if not isinstance(ctl, TableControl)]
     return ChunkedTable(n, makers, len(flat)), flat, dynamic
-
-
-def build_sensors(system, slots: dict[str, np.ndarray], seed: int, n: int) -> dict[str, Sensor]:
-    """The sensors of ``system`` with their sampling and (seeded) loss over ``n`` grid points,
-    drawn in chunks as the run goes."""
-    out = {}
-    for sname, s in system.sensors.items():
-
-        def maker(sname=sname, s=s):
-            lost = loss_drawer(stream(seed, f"loss:{sname}"), n, s.loss)
-
-            def draw(k0: int, m: int) -> np.ndarray:
-                k = np.arange(k0, k0 + m)
-                return ((k % s.period == 0) & (k > 0)) & lost(k0, m)
-            return draw
-
-        out[sname] = Sensor(sname, list(s.outputs), slots[sname], s.period,
-                            ChunkedTable(n, [maker], 1, dtype=bool))
-    return out

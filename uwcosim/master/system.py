@@ -73,6 +73,9 @@ class System:
     controls: dict[str, Control] = field(default_factory=dict)
     noise: dict[str, Noise] = field(default_factory=dict)
     sensors: dict[str, Sensor] = field(default_factory=dict)
+    #: the sensors whose outputs form the measurement vector ``z``, in order (None: all;
+    #: :mod:`uwcosim.master.measurement`)
+    measured: list[str] | None = None
     #: what an FMU's request to stop means: ``"stop"`` (status terminated) or ``"error"``
     stop_on_terminate: Literal["stop", "error"] = "stop"
     name: str = "system"
@@ -115,6 +118,7 @@ def from_scenario(loaded) -> System:
         start_time=spec.run.start_time, seed=spec.run.seed,
         connections=[tuple(c) for c in spec.connections], controls=dict(spec.controls),
         noise=dict(spec.noise), sensors=dict(spec.sensors),
+        measured=list(spec.model.sensors) if spec.model is not None else [],
         stop_on_terminate=spec.run.stop_on_terminate, name=spec.name,
         base_dir=loaded.base_dir, where=str(loaded.path),
     )

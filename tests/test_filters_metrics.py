@@ -38,9 +38,10 @@ def test_run_rmse_uses_state_names():
     truth = np.zeros((T, 4))
     est = np.tile([1.0, 0.5, 2.0, 0.1], (T, 1))  # CV order: px, vx, py, vy
     r = run_rmse(truth, est, ("px", "vx", "py", "vy"))
-    assert r["position"] == pytest.approx(np.sqrt(5.0), rel=1e-12)
-    assert r["position_px"] == pytest.approx(1.0) and r["position_py"] == pytest.approx(2.0)
-    assert r["velocity"] == pytest.approx(np.sqrt(0.26), rel=1e-12)
+    assert r["rmse_position_m"] == pytest.approx(np.sqrt(5.0), rel=1e-12)
+    assert r["rmse_x_m"] == pytest.approx(1.0) and r["rmse_y_m"] == pytest.approx(2.0)
+    assert r["rmse_velocity_mps"] == pytest.approx(np.sqrt(0.26), rel=1e-12)
+    assert r["rmse_vx_mps"] == pytest.approx(0.5) and r["rmse_vy_mps"] == pytest.approx(0.1)
     assert mean_over_runs([1.0, 2.0, np.nan]) == pytest.approx(1.5)
     e = np.zeros((3, 2, 2))
     e[:, 0, 0] = 2.0

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from uwcosim.errors import FilterDivergence, ScenarioError
+from uwcosim.evaluation.metrics import nees
 from uwcosim.filters import ESTIMATORS, Estimator
 from uwcosim.master.sources import stream
 
@@ -125,7 +126,4 @@ class EstimatorBank:
         """NEES of ``est`` against the truth on the bus (:func:`uwcosim.evaluation.metrics.nees`:
         NaN when ``P`` is not positive definite)."""
         e = master.bus[self.truth_slots] - est.x
-        try:
-            return float(e @ np.linalg.solve(est.P, e))
-        except np.linalg.LinAlgError:
-            return float("nan")
+        return float(nees(e[None, :], est.P[None])[0])

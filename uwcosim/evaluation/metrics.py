@@ -8,10 +8,11 @@ without a value (no update, a diverged filter) and is left out.
   combined (Euclidean) ``sqrt(mean_k |e_k|^2)`` over the position (or velocity) axes; over ``ST``
   runs eq. (56) averages the runs' RMSEs (:func:`mean_over_runs`). :func:`rmse_per_step` is the
   per-time RMSE over runs (seed 001 eq. 43 for one run, Huang et al. 2018).
-- NEES ``e' P^-1 e`` (Cholesky solves) and NIS with two-sided chi-square bounds
-  (:func:`chi2_band`): the mean of ``M`` independent ``chi2(d)`` values lies in
-  ``chi2.ppf([a/2, 1 - a/2], M d) / M`` with probability ``1 - a``. ANEES is the mean NEES over
-  runs (per step) or over runs and time; divided by ``n`` it is 1 for a consistent filter.
+- NEES ``e' P^-1 e`` (Cholesky solves; also the estimator bank's per-step NEES) and NIS
+  with two-sided chi-square bounds (:func:`chi2_band`): the mean of ``M`` independent
+  ``chi2(d)`` values lies in ``chi2.ppf([a/2, 1 - a/2], M d) / M`` with probability
+  ``1 - a``. ANEES is the mean NEES over runs (per step) or over runs and time; divided by
+  ``n`` it is 1 for a consistent filter.
 - Time per step: median and 95th percentile.
 """
 
@@ -48,18 +49,23 @@ def rmse_combined(err: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(err[ok] ** 2, axis=1))))
 
 
+#: per-axis RMSE keys: (label, unit, axis names), the same for every model (``px``/``py`` of a
+#: CV model are the ``x``/``y`` axes)
+RMSE_KEYS = (("position", "m", ("x", "y")), ("velocity", "mps", ("vx", "vy")))
+
+
 def run_rmse(x_true: np.ndarray, x_est: np.ndarray, state_names) -> dict[str, float]:
-    """Position and velocity RMSE of one run: combined and per axis (seed 000 eq. 56, ST = 1)."""
+    """Position and velocity RMSE of one run, combined and per axis (seed 000 eq. 56, ST = 1):
+    ``rmse_position_m``, ``rmse_x_m``, ``rmse_y_m``, ``rmse_velocity_mps``, ``rmse_vx_mps``,
+    ``rmse_vy_mps`` (the keys of ``summary.json`` and of a campaign's tables)."""
     err = np.asarray(x_est, dtype=float) - np.asarray(x_true, dtype=float)
-    names = list(state_names)
-    pos, vel = position_velocity_indices(names)
     out: dict[str, float] = {}
-    for label, idx in (("position", pos), ("velocity", vel)):
+    for (label, unit, axes), idx in zip(RMSE_KEYS, position_velocity_indices(state_names)):
         if not idx:
             continue
-        out[label] = rmse_combined(err[:, idx])
-        for i, r in zip(idx, rmse(err[:, idx])):
-            out[f"{label}_{names[i]}"] = float(r)
+        out[f"rmse_{label}_{unit}"] = rmse_combined(err[:, idx])
+        for ax, r in zip(axes, rmse(err[:, idx])):
+            out[f"rmse_{ax}_{unit}"] = float(r)
     return out
 
 

@@ -13,12 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uwcosim.evaluation.metrics import (
-    chi2_ppf,
-    position_velocity_indices,
-    rmse,
-    rmse_combined,
-)
+from uwcosim.evaluation.metrics import chi2_ppf, run_rmse
 from uwcosim.runlog import read_log
 
 
@@ -26,16 +21,7 @@ def estimator_metrics(cols: dict, name: str, truth: list[str], states: list[str]
     """Metrics of estimator ``name`` from log columns (rows 1.. are the filtered steps)."""
     X = np.stack([cols[t] for t in truth], axis=1)[1:]
     E = np.stack([cols[f"est.{name}.{s}"] for s in states], axis=1)[1:]
-    err = E - X
-    pos, vel = position_velocity_indices(states)
-    out = {}
-    for label, unit, idx, axes in (("position", "m", pos, ("x", "y")),
-                                   ("velocity", "mps", vel, ("vx", "vy"))):
-        if not idx:
-            continue
-        out[f"rmse_{label}_{unit}"] = rmse_combined(err[:, idx])
-        for ax, r in zip(axes, rmse(err[:, idx])):
-            out[f"rmse_{ax}_{unit}"] = float(r)
+    out = run_rmse(X, E, states)
     nees = cols[f"est.{name}.nees"][1:]
     nees = nees[np.isfinite(nees)]
     nx = len(states)

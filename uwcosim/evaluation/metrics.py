@@ -8,7 +8,7 @@ without a value (no update, a diverged filter) and is left out.
   combined (Euclidean) ``sqrt(mean_k |e_k|^2)`` over the position (or velocity) axes; over ``ST``
   runs eq. (56) averages the runs' RMSEs (:func:`mean_over_runs`). :func:`rmse_per_step` is the
   per-time RMSE over runs (seed 001 eq. 43 for one run, Huang et al. 2018).
-- NEES ``e' P^-1 e`` (Cholesky solves; also the estimator bank's per-step NEES) and NIS
+- NEES ``e' P^-1 e`` (LU solves; also the estimator bank's per-step NEES) and NIS
   with two-sided chi-square bounds (:func:`chi2_band`): the mean of ``M`` independent
   ``chi2(d)`` values lies in ``chi2.ppf([a/2, 1 - a/2], M d) / M`` with probability
   ``1 - a``. ANEES is the mean NEES over runs (per step) or over runs and time; divided by
@@ -84,7 +84,9 @@ def rmse_per_step(err_runs: np.ndarray) -> np.ndarray:
 def nees(err: np.ndarray, P: np.ndarray) -> np.ndarray:
     """``e_k' P_k^-1 e_k`` per step from ``(T, n)`` errors and ``(T, n, n)`` covariances.
 
-    Batched Cholesky solves; a step whose ``P`` is not positive definite (or has NaN) gives NaN.
+    Batched LU solves (``numpy.linalg.solve``). A step with a NaN, or whose ``P`` is singular,
+    gives NaN; a ``P`` that is not positive definite gives its quadratic form, which may be
+    negative (the estimator bank's divergence check flags a negative NEES).
     """
     err = np.asarray(err, dtype=float)
     P = np.asarray(P, dtype=float)
@@ -93,19 +95,18 @@ def nees(err: np.ndarray, P: np.ndarray) -> np.ndarray:
     idx = np.flatnonzero(ok)
     if idx.size == 0:
         return out
+    e = err[idx]
     try:
-        L = np.linalg.cholesky(P[idx])
-    except np.linalg.LinAlgError:  # some step is not PD: step by step
+        y = np.linalg.solve(P[idx], e[..., None])[..., 0]
+    except np.linalg.LinAlgError:  # some step is singular: step by step
         for k in idx:
             try:
-                Lk = np.linalg.cholesky(P[k])
+                out[k] = err[k] @ np.linalg.solve(P[k], err[k])
             except np.linalg.LinAlgError:
                 continue
-            y = np.linalg.solve(Lk, err[k])
-            out[k] = y @ y
         return out
-    y = np.linalg.solve(L, err[idx][..., None])[..., 0]  # L y = e
-    out[idx] = np.sum(y * y, axis=-1)
+    # one step (the estimator bank's call): the dot product, bit for bit ``e @ solve(P, e)``
+    out[idx] = e[0] @ y[0] if idx.size == 1 else np.einsum("ki,ki->k", e, y)
     return out
 
 

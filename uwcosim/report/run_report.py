@@ -66,10 +66,12 @@ def markdown_report(run: RunFiles, figures: list[Path]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def report_run(run_dir: str | Path, out: str | Path | None = None, html: bool = False) -> Path:
+def report_run(run_dir: str | Path, out: str | Path | None = None, html: bool = False,
+               summary: dict | None = None) -> Path:
     """Figures and ``report.md`` (and ``report.html`` with ``html``) of a run directory into
-    ``out`` (default: the run directory). Returns the report's path."""
-    run = load_run(run_dir)
+    ``out`` (default: the run directory). Returns the report's path. ``summary``: the run's
+    summary (default: its ``summary.json``)."""
+    run = load_run(run_dir, summary)
     out = Path(out) if out is not None else run.run_dir
     out.mkdir(parents=True, exist_ok=True)
     figures = write_figures(run, out)

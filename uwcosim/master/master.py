@@ -32,7 +32,6 @@ import shutil
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from multiprocessing import util as mp_util
 from pathlib import Path
 
@@ -40,9 +39,10 @@ import numpy as np
 
 from uwcosim.errors import FMUError, ScenarioError
 from uwcosim.master import vartypes
-from uwcosim.master.adapter import Binding, FMUAdapter
+from uwcosim.master.adapter import FMUAdapter
 from uwcosim.master.graph import stepping_order
 from uwcosim.master.measurement import Measurement, SensorBank
+from uwcosim.master.node import Node, build_node
 from uwcosim.master.proxy import ProxyAdapter
 from uwcosim.master.sources import (
     StageInputs,
@@ -58,36 +58,6 @@ from uwcosim.master.varmap import (
     load_entries,
     noise_free_sources,
 )
-
-#: native values kept exactly (not only as float64 on the bus) for logging
-_EXACT_DTYPES = ("int64", "uint64", "object")
-
-
-@dataclass
-class _Node:
-    adapter: FMUAdapter
-    period: int
-    inputs: Binding
-    in_slots: np.ndarray
-    outputs: Binding
-    out_slots: np.ndarray
-    input_fn: Callable | None = None
-    time_s: float = 0.0
-    #: String inputs: (member index, bus slot of the String source)
-    str_inputs: list[tuple[int, int]] = field(default_factory=list)
-    #: outputs kept exactly (String, Int64, UInt64): (member index, bus slot)
-    exact_outputs: list[tuple[int, int]] = field(default_factory=list)
-    #: indices of the numeric outputs when some are Strings (None: all numeric)
-    numeric: np.ndarray | None = None
-    #: per-input ``(factor, offset)`` of connections with a linear transformation, or None
-    in_affine: tuple[np.ndarray, np.ndarray] | None = None
-
-    def gather(self, bus: np.ndarray) -> None:
-        """Copy this FMU's inputs from the bus (``factor * value + offset`` where given)."""
-        np.take(bus, self.in_slots, out=self.inputs.view)
-        if self.in_affine is not None:
-            self.inputs.view *= self.in_affine[0]
-            self.inputs.view += self.in_affine[1]
 
 
 def _remove_tree(path: str) -> None:
@@ -210,35 +180,14 @@ class Master:
         deps = {n: a.feedthrough() for n, a in self.adapters.items()}
         order = stepping_order(list(self.adapters), [(c[0], c[1]) for c in system.connections],
                                deps)
-        self.nodes: list[_Node] = [self._node(name) for name in order]
+        self.nodes: list[Node] = [self._node(name) for name in order]
         self._sample_sources()
 
-    def _node(self, name: str) -> _Node:
-        ad = self.adapters[name]
-        drivers = self.drivers
-        ins = sorted(k.split(".", 1)[1] for k in drivers if k.split(".", 1)[0] == name)
-        outs = [k.split(".", 1)[1] for k in self.out_vars if k.split(".", 1)[0] == name]
-        node = _Node(
-            adapter=ad, period=self.system.fmus[name].period,
-            inputs=ad.bind(ins),
-            in_slots=np.array([self.slots[drivers[f"{name}.{i}"]] for i in ins], dtype=np.intp),
-            outputs=ad.bind(outs),
-            out_slots=np.array([self.slots[f"{name}.{o}"] for o in outs], dtype=np.intp),
-        )
-        node.str_inputs = [(j, self.slots[drivers[f"{name}.{i}"]]) for j, i in enumerate(ins)
-                           if vartypes.kind(ad.variables[i]) == "string"]
-        exact = [j for j, o in enumerate(outs)
-                 if np.dtype(vartypes.numpy_dtype(ad.variables[o])).name in _EXACT_DTYPES]
-        node.exact_outputs = [(j, int(node.out_slots[j])) for j in exact]
-        strings = {j for j, o in enumerate(outs) if vartypes.kind(ad.variables[o]) == "string"}
-        if strings:
-            node.numeric = np.array([j for j in range(len(outs)) if j not in strings],
-                                    dtype=np.intp)
-        if any(f"{name}.{i}" in self.transforms for i in ins):
-            fo = np.array([self.transforms.get(f"{name}.{i}", (1.0, 0.0)) for i in ins])
-            node.in_affine = (fo[:, 0].copy(), fo[:, 1].copy())
-        if ad.interface == "me":
-            node.input_fn = self._continuous_inputs(ins, name)
+    def _node(self, name: str) -> Node:
+        node = build_node(name, self.adapters[name], self.system.fmus[name].period,
+                          self.drivers, self.slots, self.out_vars, self.transforms)
+        if node.adapter.interface == "me":
+            node.input_fn = self._continuous_inputs(node.inputs.names, name)
         return node
 
     def _open(self, name: str, f) -> FMUAdapter | ProxyAdapter:
@@ -412,9 +361,9 @@ class Master:
             f = self.system.fmus[name]
             params = dict(f.parameters)
             params.update((start_overrides or {}).get(name, {}))
-            self._set_text(node)
+            node.set_text(self.text)
             node.gather(self.bus)
-            start = {**f.start, **self._input_values(node)}  # driven inputs: their driver
+            start = {**f.start, **node.input_values()}  # driven inputs: their driver
             self.busy = (name, "instantiate", self.t0, time.monotonic())
             try:
                 node.adapter.instantiate(params, start, self.t0, t_stop)
@@ -423,7 +372,7 @@ class Master:
             finally:
                 self.busy = None
             node.adapter.set_inputs(node.inputs, self.t0)
-            self._read(node, self.t0)
+            node.read(self.t0, self.bus, self.native, self.text)
         self._initialized = True
         for node in self.nodes:  # a request to stop in the initial event iteration
             if node.adapter.terminated is not None:
@@ -443,41 +392,6 @@ class Master:
         for slot, ctl in self.dynamic:
             x, y = self.bus[ctl.pos_slots]
             self.bus[slot] = ctl.value_at(x, y)
-
-    def _input_values(self, node: _Node) -> dict:
-        """The node's driven inputs as native values (for initialization mode)."""
-        out = {}
-        for j, name in enumerate(node.inputs.names):
-            var = node.adapter.variables[name]
-            if node.adapter.varmap.aliases.get(name) is not None:
-                continue  # a role with a unit conversion: set by set_inputs after initialization
-            kind = vartypes.kind(var)
-            x = node.inputs.view[j]
-            out[name] = (node.inputs.text.get(j, "") if kind == "string" else
-                         int(round(x)) if kind == "int" else bool(x) if kind == "bool"
-                         else float(x))
-        return out
-
-    def _set_text(self, node: _Node) -> None:
-        for j, slot in node.str_inputs:
-            node.inputs.text[j] = self.text.get(slot, "")
-
-    def _read(self, node: _Node, t: float) -> None:
-        out = node.adapter.get_outputs(node.outputs, t)
-        num = out if node.numeric is None else out[node.numeric]
-        if not np.all(np.isfinite(num)):
-            names = node.outputs.names if node.numeric is None else \
-                [node.outputs.names[j] for j in node.numeric]
-            bad = [n for n, v in zip(names, num) if not np.isfinite(v)]
-            raise FMUError(f"FMU '{node.adapter.name}' returned a non-finite value for "
-                           f"{', '.join(bad)} at t={t:g}")
-        self.bus[node.out_slots] = out
-        if node.exact_outputs:
-            values = node.outputs.native()
-            for j, slot in node.exact_outputs:
-                self.native[slot] = values[j]
-                if isinstance(values[j], str):
-                    self.text[slot] = values[j]
 
     def step(self) -> None:
         """Advance one base step: ``t_k -> t_{k+1}``, then call the hooks.
@@ -502,7 +416,7 @@ class Master:
                 continue
             a = time.perf_counter()
             if node.str_inputs:
-                self._set_text(node)
+                node.set_text(self.text)
             node.gather(self.bus)
             ad = node.adapter
             # the step is the difference of two grid times (as fmpy's loop does), so the FMU
@@ -516,7 +430,8 @@ class Master:
             stop = ad.terminated
             if stop is not None:
                 t_reached = stop[0]
-            self._read(node, t_next if t_reached is None else t_reached)
+            node.read(t_next if t_reached is None else t_reached, self.bus, self.native,
+                      self.text)
             dt = time.perf_counter() - a
             node.time_s += dt
             fmu_time += dt

@@ -14,6 +14,7 @@ import inspect
 import time
 from array import array
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,6 +22,11 @@ from uwcosim.errors import FilterDivergence, ScenarioError
 from uwcosim.evaluation.metrics import nees
 from uwcosim.filters import ESTIMATORS, Estimator
 from uwcosim.master.sources import stream
+
+if TYPE_CHECKING:
+    from uwcosim.master.master import Master
+    from uwcosim.models.cv_model import LinearModel
+    from uwcosim.models.statespace import CasadiModel
 
 
 @dataclass
@@ -40,7 +46,7 @@ class Track:
 class EstimatorBank:
     """All estimators of a run, fed from the master's bus."""
 
-    def __init__(self, master, model, where: str,
+    def __init__(self, master: Master, model: CasadiModel | LinearModel, where: str,
                  map_extent: tuple[float, float, float, float] | None = None) -> None:
         from uwcosim.divergence import DivergenceCheck, default_bound
         from uwcosim.evaluation.metrics import position_velocity_indices
@@ -92,7 +98,7 @@ class EstimatorBank:
     def _bad(self, msg: str):
         raise ScenarioError(f"{self.where}: key '{msg.split(':')[0]}':{msg.split(':', 1)[1]}")
 
-    def __call__(self, master) -> None:
+    def __call__(self, master: Master) -> None:
         u = master.bus[self.control_slots]
         meas = master.measurement()
         z, rec = meas.z, meas.received
@@ -122,7 +128,7 @@ class EstimatorBank:
             if tr.diverged_at is not None:
                 tr.nees = float("nan")
 
-    def nees(self, est: Estimator, master) -> float:
+    def nees(self, est: Estimator, master: Master) -> float:
         """NEES of ``est`` against the truth on the bus (:func:`uwcosim.evaluation.metrics.nees`:
         NaN when ``P`` is not positive definite)."""
         e = master.bus[self.truth_slots] - est.x

@@ -21,6 +21,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import metadata as importlib_metadata
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -33,6 +34,9 @@ from uwcosim.runguard import run_guard, signal_name
 from uwcosim.runlog import RunLogger
 from uwcosim.runlog.recorder import LogRecorder, log_columns
 from uwcosim.scenario.load import LoadedScenario
+
+if TYPE_CHECKING:
+    from uwcosim.estimation import EstimatorBank
 
 PACKAGES = ("uwcosim", "fmpy", "numpy", "scipy", "casadi", "pyarrow")
 
@@ -98,8 +102,8 @@ def prepare_out_dir(out_dir: Path, force: bool = False) -> None:
 
 
 
-def simulation_record(master: Master, bank, loaded: LoadedScenario, status: str,
-                      error: str) -> dict:
+def simulation_record(master: Master, bank: EstimatorBank | None, loaded: LoadedScenario,
+                      status: str, error: str) -> dict:
     """What the simulate stage measured and how the run ended (``simulation.json``): status,
     error, termination, the time grid reached, wall times of the FMUs and the master, the
     estimators' time per step and divergence reasons, notes."""

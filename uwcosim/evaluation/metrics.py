@@ -18,14 +18,17 @@ without a value (no update, a diverged filter) and is left out.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.special import gammaincinv
 
 _POSITION = (("x", "y"), ("px", "py"))
 _VELOCITY = (("vx", "vy"),)
 
 
-def position_velocity_indices(state_names) -> tuple[list[int], list[int]]:
+def position_velocity_indices(state_names: Sequence[str]) -> tuple[list[int], list[int]]:
     """Indices of the position and velocity states from their names (TAN or CV order)."""
     names = list(state_names)
     pos = next(([names.index(a) for a in p] for p in _POSITION if set(p) <= set(names)), [])
@@ -54,7 +57,8 @@ def rmse_combined(err: np.ndarray) -> float:
 RMSE_KEYS = (("position", "m", ("x", "y")), ("velocity", "mps", ("vx", "vy")))
 
 
-def run_rmse(x_true: np.ndarray, x_est: np.ndarray, state_names) -> dict[str, float]:
+def run_rmse(x_true: np.ndarray, x_est: np.ndarray,
+             state_names: Sequence[str]) -> dict[str, float]:
     """Position and velocity RMSE of one run, combined and per axis (seed 000 eq. 56, ST = 1):
     ``rmse_position_m``, ``rmse_x_m``, ``rmse_y_m``, ``rmse_velocity_mps``, ``rmse_vx_mps``,
     ``rmse_vy_mps`` (the keys of ``summary.json`` and of a campaign's tables)."""
@@ -69,7 +73,7 @@ def run_rmse(x_true: np.ndarray, x_est: np.ndarray, state_names) -> dict[str, fl
     return out
 
 
-def mean_over_runs(values) -> float:
+def mean_over_runs(values: ArrayLike) -> float:
     """Seed 000 eq. (56): the average of the runs' RMSEs, ``(1/ST) sum_i RMSE_i``."""
     v = np.asarray(values, dtype=float)
     return float(np.nanmean(v))
@@ -110,13 +114,13 @@ def nees(err: np.ndarray, P: np.ndarray) -> np.ndarray:
     return out
 
 
-def chi2_ppf(q, dof):
+def chi2_ppf(q: ArrayLike, dof: ArrayLike) -> np.ndarray:
     """Quantile of the chi-square distribution, ``2 P^-1(dof/2, q)`` (scipy.special: importing
     scipy.stats costs most of a second at start-up)."""
     return 2.0 * gammaincinv(np.asarray(dof, dtype=float) / 2.0, q)
 
 
-def chi2_band(dof, n: int = 1, p: float = 0.95) -> tuple[float, float]:
+def chi2_band(dof: ArrayLike, n: int = 1, p: float = 0.95) -> tuple[float, float]:
     """Two-sided ``p`` bounds of the mean of ``n`` independent ``chi2(dof)`` values."""
     a = 0.5 * (1.0 - p)
     lo, hi = chi2_ppf(np.array([a, 1.0 - a]), np.asarray(dof, dtype=float) * n)
@@ -169,7 +173,7 @@ def nis_consistency(nis: np.ndarray, dof: np.ndarray, p: float = 0.95) -> dict:
     }
 
 
-def step_time_stats(times) -> dict[str, float]:
+def step_time_stats(times: ArrayLike) -> dict[str, float]:
     """Median, 95th percentile and mean of per-step wall times (seconds)."""
     t = np.asarray(times, dtype=float)
     t = t[np.isfinite(t)]

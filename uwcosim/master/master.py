@@ -34,6 +34,7 @@ import time
 from collections.abc import Callable
 from multiprocessing import util as mp_util
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -52,6 +53,10 @@ from uwcosim.master.sources import (
     sample_sources,
 )
 from uwcosim.master.system import System, Termination, from_scenario
+
+if TYPE_CHECKING:
+    from uwcosim.scenario.load import LoadedScenario
+
 from uwcosim.master.varmap import (
     ROLES,
     connection_affine,
@@ -67,7 +72,8 @@ def _remove_tree(path: str) -> None:
 class Master:
     """Co-simulation of one system (or loaded scenario) with one seed."""
 
-    def __init__(self, system, seed: int | None = None, workdir: Path | None = None) -> None:
+    def __init__(self, system: System | LoadedScenario, seed: int | None = None,
+                 workdir: Path | None = None) -> None:
         if isinstance(system, System):
             self.loaded, self.spec = None, None
         else:  # a LoadedScenario: estimators and the logger read its spec
@@ -328,7 +334,7 @@ class Master:
         the measured sensors' outputs with their noise, NaN where not received)."""
         return self.sensors.measure(self.k, self.t, self.bus)
 
-    def value(self, name: str):
+    def value(self, name: str) -> str | int | bool | float:
         """The current value of a signal as its own type (str, int, bool or float)."""
         slot = self.slots[name]
         var = self.out_vars.get(name)

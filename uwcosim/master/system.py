@@ -28,11 +28,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from uwcosim.scenario.schema import ControlSpec as Control
 from uwcosim.scenario.schema import NoiseSpec as Noise
 from uwcosim.scenario.schema import SensorSpec as Sensor
+
+if TYPE_CHECKING:
+    from uwcosim.scenario.load import LoadedScenario
 
 __all__ = ["FMU", "Control", "Noise", "Sensor", "System", "Termination", "from_scenario"]
 
@@ -104,7 +107,7 @@ class Termination:
         return f"FMU '{self.fmu}' requested termination at t={self.time:g}{why}"
 
 
-def from_scenario(loaded) -> System:
+def from_scenario(loaded: LoadedScenario) -> System:
     """The system of a loaded scenario (:class:`~uwcosim.scenario.load.LoadedScenario`)."""
     spec = loaded.spec
     fmus = {

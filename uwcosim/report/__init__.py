@@ -4,6 +4,8 @@ rebuilds ``summary.json`` too (the evaluate stage)."""
 
 from __future__ import annotations
 
+import sys
+import types
 from pathlib import Path
 
 from uwcosim.errors import UwcosimError
@@ -45,5 +47,17 @@ def report(path: str | Path, out: str | Path | None = None, html: bool = False) 
     raise UwcosimError(f"{path}: neither a run directory (no log.parquet) nor a campaign "
                        f"directory (no results/)")
 
+
+class _CallableModule(types.ModuleType):
+    """Importing this package binds it to ``uwcosim.report``, which would then shadow the
+    function of the same name for ``from uwcosim import report``: calling the package is
+    calling :func:`report`."""
+
+    def __call__(self, path: str | Path, out: str | Path | None = None,
+                 html: bool = False) -> Path:
+        return report(path, out, html)
+
+
+sys.modules[__name__].__class__ = _CallableModule
 
 __all__ = ["report", "report_campaign", "report_run"]

@@ -10,13 +10,24 @@ variance ``est.E.var.STATE``, ``est.E.nis``, ``est.E.nees`` (flag ``est.E.diverg
 from __future__ import annotations
 
 import fnmatch
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from uwcosim.runlog.parquet import RunLogger
 
+if TYPE_CHECKING:
+    from uwcosim.estimation import EstimatorBank
+    from uwcosim.master.master import Master
+    from uwcosim.models.cv_model import LinearModel
+    from uwcosim.models.statespace import CasadiModel
 
-def log_columns(master, bank, model) -> tuple[list[str], list[int], list[str]]:
+    Model = CasadiModel | LinearModel
+
+
+def log_columns(master: Master, bank: EstimatorBank | None,
+                model: Model | None) -> tuple[list[str], list[int], list[str]]:
     """``(float columns, bus slots of the logged signals, bool columns)`` of a run's log."""
     patterns = master.spec.log.signals
     names = [n for n in master.slots
@@ -44,8 +55,9 @@ class LogRecorder:
     """A master hook: writes one log row per step from the bus, the step's
     :class:`~uwcosim.master.measurement.Measurement` and the estimator bank."""
 
-    def __init__(self, master, bank, logger: RunLogger, signal_slots, model,
-                 exact_slots=()) -> None:
+    def __init__(self, master: Master, bank: EstimatorBank | None, logger: RunLogger,
+                 signal_slots: np.ndarray, model: Model | None,
+                 exact_slots: Sequence[int] = ()) -> None:
         self.bank, self.logger, self.model = bank, logger, model
         self.sig = signal_slots
         self.exact = list(exact_slots)
@@ -55,7 +67,7 @@ class LogRecorder:
         self.row = np.empty(self.width)
         self.n_flags = len(logger.bool_columns)
 
-    def __call__(self, master) -> None:
+    def __call__(self, master: Master) -> None:
         row = self.row
         row[0] = master.t
         i = 1 + len(self.sig)
@@ -80,7 +92,7 @@ class LogRecorder:
         self.logger.append(row, np.array(flags, dtype=bool),
                            [master.native.get(s) for s in self.exact])
 
-    def final(self, master, t: float) -> None:
+    def final(self, master: Master, t: float) -> None:
         """The last row of a run an FMU stopped between two communication points: the signals
         at ``t`` (the stopped FMU's outputs at its termination time; the others' at the last
         communication point), no measurements or estimates."""

@@ -103,3 +103,14 @@ def test_readme_python_blocks_run(project_fmus, event_fmus, tmp_path, capsys):
     for f in ("log.parquet", "simulation.json", "summary.json", "report.md", "trajectory.png"):
         assert (run / f).is_file(), f
     assert json.loads((run / "summary.json").read_text())["status"] == "ok"
+
+
+def test_readme_structure_names_existing_paths(project_fmus):
+    """Every path in the first column of the README's "Repository structure" table exists."""
+    text = (ROOT / "README.md").read_text()
+    section = text.split("## Repository structure", 1)[1].split("\n## ", 1)[0]
+    paths = [p for line in section.splitlines() if line.startswith("| `")
+             for p in re.findall(r"`([^`]+)`", line.split("|")[1])]
+    assert len(paths) > 15
+    missing = [p for p in paths if not (ROOT / p).exists()]
+    assert not missing, f"README's repository structure names missing paths: {missing}"

@@ -6,10 +6,12 @@ steps: ``t = t0 + k*h``, never accumulated. Each FMU runs at an integer multiple
 ``h``; FMUs are stepped Gauss-Seidel in dependency order. Signals live in one flat float64
 array, the *bus*: every FMU output and every source has a slot, and each FMU input reads a slot.
 Integer and Boolean values travel on the bus as float64 (exact up to 2**53); String outputs
-have a slot (NaN) and their text in :attr:`Master.text`. Sources (controls, noise, sensor
-sampling and losses) are sampled from the master's seeded streams in chunks as the run goes
-(memory does not depend on the duration); closed-loop sources (waypoints) are evaluated per
-step.
+have a slot (NaN) and their text in :attr:`Master.text`. Sources (controls, noise) are sampled
+from the master's seeded streams in chunks as the run goes (memory does not depend on the
+duration); closed-loop sources (waypoints) are evaluated per step. The sensors (sampling, loss,
+noise, the measurement vector) are the master's :class:`~uwcosim.master.measurement.SensorBank`
+(:attr:`Master.sensors`, :meth:`Master.measurement`); one FMU bound to the bus is a
+:class:`~uwcosim.master.node.Node`.
 
 An FMU that asks to stop (FMI 2 ``fmi2Terminated``, FMI 3 ``terminateSimulation``) ends the run:
 :attr:`Master.terminated` holds who, when and why, and :meth:`Master.run_until` returns (or,

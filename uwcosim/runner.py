@@ -339,12 +339,7 @@ def run_scenario(scenario: LoadedScenario | str | Path, out_dir: str | Path,
     result = RunResult(out_dir, summary, out_dir / "log.parquet", summary["status"])
     if not (loaded.spec.output.figures if figures is None else figures):
         return result
-    if loaded.spec.estimators:
-        from uwcosim.report import report_run
+    from uwcosim.report import report_run
 
-        report_run(out_dir, summary=summary)
-    else:
-        from uwcosim.plots.signals import write_signal_report
-
-        write_signal_report(out_dir)
+    report_run(out_dir, summary=summary)
     return result

@@ -225,3 +225,20 @@ def test_report_of_an_interrupted_run(project_fmus, tmp_path, capsys):
     summary = json.loads((tmp_path / "summary.json").read_text())  # rebuilt by the report
     assert summary["status"] == "interrupted" and summary["steps"] == 30
     assert summary["estimators"]["ekf"]["time_per_step_s"] > 0  # from simulation.json
+
+
+def test_a_failing_evaluation_still_leaves_a_summary(project_fmus, tmp_path, monkeypatch):
+    """simulate() writes summary.json on every exit path, even when evaluate() breaks."""
+    from uwcosim import simulate
+
+    def broken(*a, **k):
+        raise ValueError("broken metric")
+
+    monkeypatch.setattr("uwcosim.evaluation.summary.estimator_metrics", broken)
+    run = simulate(load_scenario(SCENARIO, ["run.duration=5", 'estimators={e={type="ekf"}}']),
+                   tmp_path)
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["status"] == "ok" and summary["estimators"] == {}
+    assert any("evaluation failed (ValueError: broken metric)" in n for n in summary["notes"])
+    sim = json.loads((run / "simulation.json").read_text())
+    assert sim["estimators"]["e"]["time_per_step_s"] > 0 and sim["steps"] == 5

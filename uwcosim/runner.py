@@ -215,10 +215,15 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path,
 
     def finish(status: str, error: str) -> None:
         """``simulation.json`` and (with ``evaluate``) ``summary.json``."""
-        write_json(out_dir / SIMULATION_FILE,
-                   simulation_record(master, bank, loaded, status, error))
+        record = simulation_record(master, bank, loaded, status, error)
+        write_json(out_dir / SIMULATION_FILE, record)
         if evaluate:
-            evaluate_run(out_dir)
+            try:
+                evaluate_run(out_dir)
+            except Exception as exc:  # noqa: BLE001 - a summary on every exit path: say why
+                note = f"evaluation failed ({type(exc).__name__}: {exc}): no metrics"
+                write_json(out_dir / "summary.json", {
+                    **record, "estimators": {}, "notes": [*record.get("notes", []), note]})
 
     def finalize(status: str, message: str, code: int) -> str:
         """The signal watcher's finalization when the main thread is stuck in an FMU call."""

@@ -25,7 +25,12 @@ TYPED_MODULES = ("uwcosim", "uwcosim.runner", "uwcosim.evaluation.summary",
                  "uwcosim.evaluation.metrics", "uwcosim.report", "uwcosim.report.run_report",
                  "uwcosim.report.runfiles", "uwcosim.master.master", "uwcosim.master.system",
                  "uwcosim.master.measurement", "uwcosim.master.node", "uwcosim.runlog.recorder",
-                 "uwcosim.runlog.parquet", "uwcosim.estimation")
+                 "uwcosim.runlog.parquet", "uwcosim.estimation", "uwcosim.master.sources",
+                 "uwcosim.master.vartypes", "uwcosim.master.varmap", "uwcosim.master.solvers",
+                 "uwcosim.master.proxy", "uwcosim.master.archive", "uwcosim.master.adapter",
+                 "uwcosim.master.graph", "uwcosim.master.binding", "uwcosim.demo",
+                 "uwcosim.plots.run_figures", "uwcosim.plots.html", "uwcosim.plots.signals",
+                 "uwcosim.plots.density_figures", "uwcosim.runguard", "uwcosim.divergence")
 
 
 def test_public_names_import_lazily():

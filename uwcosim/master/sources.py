@@ -14,11 +14,18 @@ stream advanced by ``n``), so a run's samples do not depend on the chunk size.
 from __future__ import annotations
 
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Collection
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uwcosim.scenario.schema import BernoulliLoss, ControlSpec, GilbertElliottLoss
+
+if TYPE_CHECKING:
+    from fmpy.model_description import ModelVariable
+
+    from uwcosim.master.system import System
 
 
 def stream(seed: int, purpose: str) -> np.random.Generator:
@@ -36,7 +43,7 @@ class TableControl:
         self.t, self.v = table[:, 0], table[:, 1]
         self.hold = spec.interpolation == "hold"
 
-    def value(self, t):
+    def value(self, t: float | np.ndarray) -> float | np.ndarray:
         if self.hold:
             i = np.searchsorted(self.t, t, side="right") - 1
             return self.v[np.clip(i, 0, len(self.v) - 1)]
@@ -80,7 +87,7 @@ class WaypointHeading:
         self.last = psi
         return psi
 
-    def value(self, t):
+    def value(self, t: float) -> float:
         return self.last if self.last is not None else 0.0
 
 
@@ -99,7 +106,7 @@ class ChunkedTable:
     read in increasing order (a jump back restarts the streams and draws up to that row)."""
 
     def __init__(self, n: int, makers: list[Callable[[], Drawer]], width: int,
-                 dtype=float, chunk: int | None = None) -> None:
+                 dtype: type | np.dtype = float, chunk: int | None = None) -> None:
         self.n, self.makers, self.width, self.dtype = int(n), makers, width, dtype
         self.chunk = int(CHUNK_STEPS if chunk is None else chunk)
         self._restart()
@@ -127,12 +134,12 @@ class ChunkedTable:
         return self.rows[k - self.k0]
 
 
-def noise_drawer(rng: np.random.Generator, psd, h: float) -> Drawer:
+def noise_drawer(rng: np.random.Generator, psd: ArrayLike, h: float) -> Drawer:
     scale = np.sqrt(np.asarray(psd, dtype=float) / h)
     return lambda k0, m: rng.standard_normal((m, scale.size)) * scale
 
 
-def gaussian_drawer(rng: np.random.Generator, sigma) -> Drawer:
+def gaussian_drawer(rng: np.random.Generator, sigma: ArrayLike) -> Drawer:
     sigma = np.asarray(sigma, dtype=float)
     return lambda k0, m: rng.standard_normal((m, sigma.size)) * sigma
 
@@ -167,13 +174,13 @@ def loss_drawer(rng: np.random.Generator, n: int,
     return draw
 
 
-def white_noise(rng: np.random.Generator, n_steps: int, psd, h: float) -> np.ndarray:
+def white_noise(rng: np.random.Generator, n_steps: int, psd: ArrayLike, h: float) -> np.ndarray:
     """Held white-noise samples ``[n_steps, n]`` of variance ``psd / h`` (PSD held over h)."""
     psd = np.asarray(psd, dtype=float)
     return rng.standard_normal((n_steps, psd.size)) * np.sqrt(psd / h)
 
 
-def gaussian(rng: np.random.Generator, n_steps: int, sigma) -> np.ndarray:
+def gaussian(rng: np.random.Generator, n_steps: int, sigma: ArrayLike) -> np.ndarray:
     sigma = np.asarray(sigma, dtype=float)
     return rng.standard_normal((n_steps, sigma.size)) * sigma
 
@@ -190,7 +197,7 @@ def loss_mask(
     return loss_drawer(rng, n, spec)(0, n)
 
 
-def control_problem(c: ControlSpec, var) -> str | None:
+def control_problem(c: ControlSpec, var: ModelVariable) -> str | None:
     """Why control ``c`` cannot drive the FMU input ``var`` (None: it can). A control drives a
     Real input, or an Integer/Boolean one with a held table of whole (Boolean: 0/1) values."""
     from uwcosim.master import vartypes
@@ -223,8 +230,9 @@ class StageInputs:
             view[j] = ctl.value(t)
 
 
-def sample_sources(system, controls: dict, slots: dict[str, int], seed: int, n: int,
-                   skip=()):
+def sample_sources(system: System, controls: dict, slots: dict[str, int], seed: int, n: int,
+                   skip: Collection[str] = ()
+                   ) -> tuple[ChunkedTable, np.ndarray, list[tuple[int, WaypointHeading]]]:
     """The open-loop controls and noise of ``system`` on the ``n`` grid points, drawn in chunks
     from the seed's streams (the sensors' noise: :mod:`uwcosim.master.measurement`):
     ``(ChunkedTable [n, m], bus slots [m], [(slot, closed-loop control)])``.

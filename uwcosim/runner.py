@@ -150,11 +150,12 @@ def _as_loaded(scenario: LoadedScenario | str | Path) -> LoadedScenario:
     return load_scenario(scenario)
 
 
-def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path,
+def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None = None,
              seed: int | None = None, progress: Callable | None = None,
              master: Master | None = None, evaluate: bool = True) -> Path:
     """Run ``scenario`` (loaded, or a file) into ``out_dir`` (created): ``log.parquet``,
-    ``simulation.json``, ``map.bin``, ``densities.npz``; with ``evaluate`` also
+    ``simulation.json``, ``map.bin``, ``densities.npz`` (default ``out_dir``:
+    ``runs/<scenario file stem>``, as ``uwcosim run``); with ``evaluate`` also
     ``summary.json`` (:func:`uwcosim.evaluation.evaluate`), on every exit path. Returns the run
     directory. Always leaves a readable log.
 
@@ -174,7 +175,7 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path,
     from uwcosim.models.factory import build_model
 
     loaded = _as_loaded(scenario)
-    out_dir = Path(out_dir)
+    out_dir = Path(out_dir) if out_dir is not None else Path("runs") / loaded.path.stem
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         probe = out_dir / ".write-test"
@@ -329,7 +330,7 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path,
     return out_dir
 
 
-def run_scenario(scenario: LoadedScenario | str | Path, out_dir: str | Path,
+def run_scenario(scenario: LoadedScenario | str | Path, out_dir: str | Path | None = None,
                  seed: int | None = None, figures: bool | None = None,
                  progress: Callable | None = None, master: Master | None = None) -> RunResult:
     """:func:`simulate`, :func:`~uwcosim.evaluation.evaluate` and (unless ``figures`` is

@@ -42,6 +42,7 @@ PACKAGES = ("uwcosim", "fmpy", "numpy", "scipy", "casadi", "pyarrow")
 
 
 def package_versions() -> dict[str, str]:
+    """Versions of the packages a run depends on (logged in the metadata)."""
     out = {}
     for p in PACKAGES:
         try:
@@ -53,6 +54,7 @@ def package_versions() -> dict[str, str]:
 
 
 def scenario_map(loaded: LoadedScenario) -> Bathymetry | None:
+    """The bathymetry of the scenario's ``[map]`` (None without one)."""
     m = loaded.spec.map
     if m is None:
         return None
@@ -63,6 +65,8 @@ def scenario_map(loaded: LoadedScenario) -> Bathymetry | None:
 
 @dataclass
 class RunResult:
+    """What :func:`run_scenario` returns: the run directory, its summary, log and status."""
+
     out_dir: Path
     summary: dict
     log_path: Path

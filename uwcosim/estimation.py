@@ -2,7 +2,8 @@
 
 At each communication step ``t_k -> t_{k+1}`` every estimator predicts with the control held
 over the step, then updates with the measurements received at ``t_{k+1}`` (common random
-numbers: all estimators see the same measurements), after its lost-measurement policy has
+numbers: all estimators see the same :class:`~uwcosim.master.measurement.Measurement`, from the
+master's sensor bank, which the log records too), after its lost-measurement policy has
 decided what to feed it. A diverging estimator (:mod:`uwcosim.divergence`: non-finite state,
 covariance not symmetric positive definite, negative NIS/NEES, position out of bounds) is
 flagged and stopped; the others go on.

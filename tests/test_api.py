@@ -30,7 +30,9 @@ TYPED_MODULES = ("uwcosim", "uwcosim.runner", "uwcosim.evaluation.summary",
                  "uwcosim.master.proxy", "uwcosim.master.archive", "uwcosim.master.adapter",
                  "uwcosim.master.graph", "uwcosim.master.binding", "uwcosim.demo",
                  "uwcosim.plots.run_figures", "uwcosim.plots.html", "uwcosim.plots.signals",
-                 "uwcosim.plots.density_figures", "uwcosim.runguard", "uwcosim.divergence")
+                 "uwcosim.plots.density_figures", "uwcosim.runguard", "uwcosim.divergence",
+                 "uwcosim.ssp.xml", "uwcosim.ssp.scenario", "uwcosim.ssp.read",
+                 "uwcosim.ssp.export", "uwcosim.verify.example1", "uwcosim.cli")
 
 
 def test_public_names_import_lazily():

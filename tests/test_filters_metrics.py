@@ -38,27 +38,31 @@ def test_run_rmse_uses_state_names():
     truth = np.zeros((T, 4))
     est = np.tile([1.0, 0.5, 2.0, 0.1], (T, 1))  # CV order: px, vx, py, vy
     r = run_rmse(truth, est, ("px", "vx", "py", "vy"))
-    assert r["position"] == pytest.approx(np.sqrt(5.0), rel=1e-12)
-    assert r["position_px"] == pytest.approx(1.0) and r["position_py"] == pytest.approx(2.0)
-    assert r["velocity"] == pytest.approx(np.sqrt(0.26), rel=1e-12)
+    assert r["rmse_position_m"] == pytest.approx(np.sqrt(5.0), rel=1e-12)
+    assert r["rmse_x_m"] == pytest.approx(1.0) and r["rmse_y_m"] == pytest.approx(2.0)
+    assert r["rmse_velocity_mps"] == pytest.approx(np.sqrt(0.26), rel=1e-12)
+    assert r["rmse_vx_mps"] == pytest.approx(0.5) and r["rmse_vy_mps"] == pytest.approx(0.1)
     assert mean_over_runs([1.0, 2.0, np.nan]) == pytest.approx(1.5)
     e = np.zeros((3, 2, 2))
     e[:, 0, 0] = 2.0
     np.testing.assert_allclose(rmse_per_step(e), np.sqrt(2.0))
 
 
-def test_nees_by_cholesky_and_nan_for_bad_steps():
+def test_nees_batched_and_per_step_nan_for_bad_steps():
     rng = np.random.default_rng(0)
     A = rng.standard_normal((5, 3, 3))
     P = A @ A.transpose(0, 2, 1) + np.eye(3)
     e = rng.standard_normal((5, 3))
     ref = np.einsum("ki,kij,kj->k", e, np.linalg.inv(P), e)
     np.testing.assert_allclose(nees(e, P), ref, rtol=1e-10)
-    P[1] = -np.eye(3)
+    for k in range(5):  # the estimator bank's per-step call: e @ solve(P, e), bit for bit
+        assert nees(e[k:k + 1], P[k:k + 1])[0] == e[k] @ np.linalg.solve(P[k], e[k])
+    P[1] = -np.eye(3)  # not a covariance: a negative NEES, which the divergence check flags
+    P[2] = 0.0  # singular
     e[3, 0] = np.nan
     out = nees(e, P)
-    assert np.isnan(out[1]) and np.isnan(out[3])
-    np.testing.assert_allclose(out[[0, 2, 4]], ref[[0, 2, 4]], rtol=1e-10)
+    assert out[1] == pytest.approx(-e[1] @ e[1]) and np.isnan(out[2]) and np.isnan(out[3])
+    np.testing.assert_allclose(out[[0, 4]], ref[[0, 4]], rtol=1e-10)
 
 
 def test_chi2_band_and_anees_coverage():

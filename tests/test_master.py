@@ -97,7 +97,8 @@ def test_multi_rate_sensor_and_step_api(tan, map_file):
     assert m.k == 2 and m.t == pytest.approx(2.0)
     m.run_until(9.0)
     m.close()
-    rec = [m.sensors["depth"].received_at(k) for k in range(10)]
+    j = m.sensors.names.index("sounder.depth_m")
+    rec = [m.sensors.received(k)[j] for k in range(10)]
     assert list(np.flatnonzero(rec)) == [3, 6, 9]
     depth = dict(seen)
     # the sounder is stepped every 3 steps: its output holds in between

@@ -105,6 +105,11 @@ def test_plain_scenario_runs_end_to_end(project_fmus, tmp_path, capsys, private_
     assert f"uwcosim run plain.toml --seed {summary['seed']}" in report
     assert (out / "signals.png").stat().st_size > 10_000
     assert _fmu_dirs(private_tmp) == []  # the master deleted the folders it unzipped to
+    # the report stage rebuilds summary, signals figure and report from the files alone
+    again = out.parent / "again"
+    assert main(["report", str(out), "--out", str(again)]) == 0
+    assert json.loads((again / "summary.json").read_text()) == summary
+    assert (again / "report.md").read_text() == report and (again / "signals.png").is_file()
 
 
 def test_plain_run_same_seed_same_bytes(project_fmus, tmp_path):

@@ -99,6 +99,38 @@ def test_report_of_an_older_log_without_the_new_metadata(short_run, tmp_path, mo
         assert (run / f).is_file(), f
 
 
+def test_evaluate_rebuilds_the_summary_from_the_files_alone(short_run, tmp_path, monkeypatch):
+    """evaluate() of a copy of the run directory (log, simulation.json) gives the summary the
+    run wrote, timing and status included, without a scenario, a master or a model."""
+    from uwcosim import evaluate
+
+    run = _copy_run(short_run, tmp_path / "copy")
+    shutil.copy(short_run / "simulation.json", run / "simulation.json")
+    (run / "summary.json").unlink()
+    _no_live_objects(monkeypatch)
+    original = json.loads((short_run / "summary.json").read_text())
+    assert json.loads(json.dumps(evaluate(run))) == original
+    assert json.loads((run / "summary.json").read_text()) == original
+    assert original["timing"]["fmus_per_step_s"] > 0 and original["status"] == "ok"
+    assert set(original["estimators"]) == set(read_log(run / "log.parquet")[1]["estimators"])
+    out = tmp_path / "elsewhere"
+    evaluate(run, out)  # into another folder; the run directory is left as it is
+    assert json.loads((out / "summary.json").read_text()) == original
+
+
+def test_evaluate_of_a_run_killed_before_its_simulation_file(short_run, tmp_path):
+    from uwcosim import evaluate
+
+    run = _copy_run(short_run, tmp_path / "killed")
+    (run / "summary.json").unlink()
+    summary = evaluate(run)
+    assert summary["status"] == "unknown" and summary["timing"] == {}
+    assert any("recomputed from the log" in n for n in summary["notes"])
+    original = json.loads((short_run / "summary.json").read_text())["estimators"]
+    for name, m in summary["estimators"].items():
+        assert m["rmse_position_m"] == original[name]["rmse_position_m"]
+
+
 def test_report_of_a_folder_that_is_no_run(tmp_path, capsys):
     assert main(["report", str(tmp_path)]) == 1
     err = capsys.readouterr().err.strip()
@@ -190,3 +222,23 @@ def test_report_of_an_interrupted_run(project_fmus, tmp_path, capsys):
     assert "status interrupted" in text and "| ekf |" in text
     for f in (*FIGURES, "report.html"):
         assert (tmp_path / f).is_file(), f
+    summary = json.loads((tmp_path / "summary.json").read_text())  # rebuilt by the report
+    assert summary["status"] == "interrupted" and summary["steps"] == 30
+    assert summary["estimators"]["ekf"]["time_per_step_s"] > 0  # from simulation.json
+
+
+def test_a_failing_evaluation_still_leaves_a_summary(project_fmus, tmp_path, monkeypatch):
+    """simulate() writes summary.json on every exit path, even when evaluate() breaks."""
+    from uwcosim import simulate
+
+    def broken(*a, **k):
+        raise ValueError("broken metric")
+
+    monkeypatch.setattr("uwcosim.evaluation.summary.estimator_metrics", broken)
+    run = simulate(load_scenario(SCENARIO, ["run.duration=5", 'estimators={e={type="ekf"}}']),
+                   tmp_path)
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["status"] == "ok" and summary["estimators"] == {}
+    assert any("evaluation failed (ValueError: broken metric)" in n for n in summary["notes"])
+    sim = json.loads((run / "simulation.json").read_text())
+    assert sim["estimators"]["e"]["time_per_step_s"] > 0 and sim["steps"] == 5

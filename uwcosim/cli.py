@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 from uwcosim import __version__
@@ -248,7 +249,7 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         return super()._get_help_string(action)
 
 
-def walk_parsers(parser: argparse.ArgumentParser):
+def walk_parsers(parser: argparse.ArgumentParser) -> Iterator[argparse.ArgumentParser]:
     """The parser and every sub-parser under it (for the formatter and the tests)."""
     yield parser
     for action in parser._actions:

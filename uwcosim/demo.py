@@ -9,7 +9,12 @@ written to the current folder but the run directory.
 from __future__ import annotations
 
 import shutil
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from uwcosim.runner import RunResult
 
 DEMO_SCENARIO = "tan_terrain.toml"
 DEMO_FMUS = ("AUVKinematics", "DVL", "DepthSounder")
@@ -36,7 +41,8 @@ def prepare_cache(cache: Path | None = None) -> Path:
     return cache / "scenarios" / DEMO_SCENARIO
 
 
-def run_demo(out: Path, overrides=(), cache: Path | None = None, seed: int | None = None):
+def run_demo(out: Path, overrides: Sequence[str] = (), cache: Path | None = None,
+             seed: int | None = None) -> RunResult:
     """Prepare the cache and run the TAN scenario into ``out``; the :class:`RunResult`."""
     from uwcosim.runner import run_scenario
     from uwcosim.scenario import load_scenario

@@ -2,7 +2,8 @@
 
 At each communication step ``t_k -> t_{k+1}`` every estimator predicts with the control held
 over the step, then updates with the measurements received at ``t_{k+1}`` (common random
-numbers: all estimators see the same measurements), after its lost-measurement policy has
+numbers: all estimators see the same :class:`~uwcosim.master.measurement.Measurement`, from the
+master's sensor bank, which the log records too), after its lost-measurement policy has
 decided what to feed it. A diverging estimator (:mod:`uwcosim.divergence`: non-finite state,
 covariance not symmetric positive definite, negative NIS/NEES, position out of bounds) is
 flagged and stopped; the others go on.
@@ -16,12 +17,19 @@ from __future__ import annotations
 import time
 from array import array
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from uwcosim.errors import FilterDivergence, ScenarioError
+from uwcosim.evaluation.metrics import nees
 from uwcosim.filters import Estimator
-from uwcosim.master.sources import ChunkedTable, gaussian_drawer, stream
+from uwcosim.master.sources import stream
+
+if TYPE_CHECKING:
+    from uwcosim.master.master import Master
+    from uwcosim.models.cv_model import LinearModel
+    from uwcosim.models.statespace import CasadiModel
 
 
 @dataclass
@@ -41,7 +49,7 @@ class Track:
 class EstimatorBank:
     """All estimators of a run, fed from the master's bus."""
 
-    def __init__(self, master, model, where: str,
+    def __init__(self, master: Master, model: CasadiModel | LinearModel, where: str,
                  map_extent: tuple[float, float, float, float] | None = None) -> None:
         from uwcosim.divergence import DivergenceCheck, default_bound
         from uwcosim.evaluation.metrics import position_velocity_indices
@@ -56,29 +64,7 @@ class EstimatorBank:
         self.truth_slots = np.array([master._slot(s, "model.truth") for s in mspec.truth])
         self.control_slots = np.array([master.slots[f"controls.{c}"] for c in mspec.controls],
                                       dtype=np.intp)
-        names, slots, sensor_of = [], [], []
-        for sname in mspec.sensors:
-            sensor = master.sensors[sname]
-            names += sensor.outputs
-            slots += list(sensor.slots)
-            sensor_of += [sname] * len(sensor.outputs)
-        self.meas_slots = np.array(slots, dtype=np.intp)
-        self._z_step = -1
-        # sensors with sigma but no noise inputs: the master's stream adds the noise here
-        # (drawn in chunks as the run goes, as the master's sources)
-        n = master.n_steps + 1
-        makers = []
-        for sname in mspec.sensors:
-            s = spec.sensors[sname]
-            if s.sigma and not s.noise_inputs:
-                makers.append(lambda sname=sname, s=s: gaussian_drawer(
-                    stream(master.seed, f"sensor-noise:{sname}"), s.sigma))
-            else:
-                makers.append(lambda w=len(s.outputs):
-                              lambda k0, m: np.zeros((m, w)))
-        self.additive = ChunkedTable(n, makers, len(slots))
-        self.sensor_of = sensor_of
-        self._sensors = [master.sensors[s] for s in sensor_of]
+        sensor_of = master.sensors.sensor_of  # the model's sensors (System.measured)
         x_true0 = master.bus[self.truth_slots]
         est_common = spec.estimation
         bound = est_common.position_bound if est_common is not None else None
@@ -108,21 +94,10 @@ class EstimatorBank:
             use = np.array([s in use_sensors for s in sensor_of], dtype=bool)
             self.tracks.append(Track(ename, est, policy, use))
 
-    def measurements(self, master) -> tuple[np.ndarray, np.ndarray]:
-        """``(z, received)`` at the master's current step; z is NaN where not received.
-
-        Computed once per step (the estimators and the logger both read it)."""
-        if self._z_step != master.k:
-            k = master.k
-            rec = np.array([s.received_at(k) for s in self._sensors], dtype=bool)
-            self._z = np.where(rec, master.bus[self.meas_slots] + self.additive.row(k),
-                               np.nan), rec
-            self._z_step = master.k
-        return self._z
-
-    def __call__(self, master) -> None:
+    def __call__(self, master: Master) -> None:
         u = master.bus[self.control_slots]
-        z, rec = self.measurements(master)
+        meas = master.measurement()
+        z, rec = meas.z, meas.received
         t = master.t
         for tr in self.tracks:
             if tr.diverged_at is not None:
@@ -149,10 +124,8 @@ class EstimatorBank:
             if tr.diverged_at is not None:
                 tr.nees = float("nan")
 
-    def nees(self, est: Estimator, master) -> float:
-        """``e' P^-1 e`` with ``e = x_true - x`` (NaN if ``P`` is singular)."""
+    def nees(self, est: Estimator, master: Master) -> float:
+        """NEES of ``est`` against the truth on the bus (:func:`uwcosim.evaluation.metrics.nees`:
+        NaN when ``P`` is not positive definite)."""
         e = master.bus[self.truth_slots] - est.x
-        try:
-            return float(e @ np.linalg.solve(est.P, e))
-        except np.linalg.LinAlgError:
-            return float("nan")
+        return float(nees(e[None, :], est.P[None])[0])

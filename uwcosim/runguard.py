@@ -2,7 +2,7 @@
 
 A call into an FMU's shared library cannot be interrupted by a Python signal handler: the
 handler only runs when the main thread comes back to Python bytecode, which a hanging FMU never
-does. So while a run is going (:func:`run_guard`, entered by :func:`uwcosim.runner.run_scenario`
+does. So while a run is going (:func:`run_guard`, entered by :func:`uwcosim.runner.simulate`
 in the main thread):
 
 - SIGINT (Ctrl-C), SIGTERM and SIGHUP get a handler that only *records* the signal; the C-level
@@ -31,7 +31,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 from uwcosim.errors import RunInterrupted
@@ -104,7 +104,7 @@ class RunGuard:
         self._saved_fd = -1
 
     # -- main thread side -------------------------------------------------------------------
-    def check(self, master=None) -> None:
+    def check(self, master: object = None) -> None:
         """A master hook: raise :class:`RunInterrupted` once a stop signal arrived."""
         if self.signum is not None:
             raise RunInterrupted(f"interrupted by {signal_name(self.signum)}")
@@ -215,7 +215,7 @@ class RunGuard:
 
 
 @contextmanager
-def run_guard(fmu_timeout_s: float | None = None):
+def run_guard(fmu_timeout_s: float | None = None) -> Iterator[RunGuard]:
     """The guard of one run (nested runs share the outer one's). Yields the :class:`RunGuard`;
     outside the main thread it is inert (signals behave as Python's defaults)."""
     global _active

@@ -1,18 +1,27 @@
-"""Run one scenario with one seed: master + estimators + log + summary + figures.
+"""Run one scenario with one seed, in three stages that each leave files in the run directory.
 
-This is the library behind ``uwcosim run``; the algorithm (master, filters) knows nothing of
-what records it: the estimator bank and the logger are hooks on the master.
+1. :func:`simulate` -- master + estimators + log: ``log.parquet`` (its metadata names the
+   scenario, seed, versions, FMU hashes, states, truth and measurement signals, estimators and
+   the map file), ``simulation.json`` (status, error, termination, wall times, the estimators'
+   time per step and divergence reasons, notes), ``map.bin``, ``densities.npz``;
+2. :func:`uwcosim.evaluation.evaluate` -- ``summary.json`` from those files alone;
+3. :func:`uwcosim.report.report` -- figures and ``report.md`` from those files alone.
+
+:func:`run_scenario` (behind ``uwcosim run``) is the three in a row. The algorithm (master,
+filters) knows nothing of what records it: the estimator bank and the log recorder are hooks on
+the master. :func:`simulate` evaluates the run as its last act on every exit path (under the
+run's signal guard, so a second Ctrl-C cannot lose the summary): an interrupted, failed or
+terminated run still has its ``summary.json``.
 """
 
 from __future__ import annotations
 
-import fnmatch
-import json
-import os
 import platform
+from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import metadata as importlib_metadata
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -23,12 +32,17 @@ from uwcosim.master.varmap import noise_free_notes
 from uwcosim.models.bathymetry import Bathymetry, load_map, synthetic_bathymetry
 from uwcosim.runguard import run_guard, signal_name
 from uwcosim.runlog import RunLogger
+from uwcosim.runlog.recorder import LogRecorder, log_columns
 from uwcosim.scenario.load import LoadedScenario
+
+if TYPE_CHECKING:
+    from uwcosim.estimation import EstimatorBank
 
 PACKAGES = ("uwcosim", "fmpy", "numpy", "scipy", "casadi", "pyarrow")
 
 
 def package_versions() -> dict[str, str]:
+    """Versions of the packages a run depends on (logged in the metadata)."""
     out = {}
     for p in PACKAGES:
         try:
@@ -40,6 +54,7 @@ def package_versions() -> dict[str, str]:
 
 
 def scenario_map(loaded: LoadedScenario) -> Bathymetry | None:
+    """The bathymetry of the scenario's ``[map]`` (None without one)."""
     m = loaded.spec.map
     if m is None:
         return None
@@ -50,87 +65,17 @@ def scenario_map(loaded: LoadedScenario) -> Bathymetry | None:
 
 @dataclass
 class RunResult:
+    """What :func:`run_scenario` returns: the run directory, its summary, log and status."""
+
     out_dir: Path
     summary: dict
     log_path: Path
     status: str
 
 
-class _LogHook:
-    """Writes one log row per step from the master's bus and the estimator bank."""
-
-    def __init__(self, master: Master, bank, logger: RunLogger, signal_slots, model,
-                 exact_slots=()) -> None:
-        self.bank, self.logger, self.model = bank, logger, model
-        self.sig = signal_slots
-        self.exact = list(exact_slots)
-        self.width = 1 + len(signal_slots)
-        if bank:
-            self.width += len(bank.meas_slots) + len(bank.tracks) * (2 * model.nx + 2)
-        self.row = np.empty(self.width)
-        self.n_flags = len(logger.bool_columns)
-
-    def __call__(self, master: Master) -> None:
-        row = self.row
-        row[0] = master.t
-        i = 1 + len(self.sig)
-        row[1:i] = master.bus[self.sig]
-        flags = []
-        if self.bank:
-            z, rec = self.bank.measurements(master)
-            row[i:i + z.size] = z
-            i += z.size
-            flags = [bool(r) for r in rec]
-            nx = self.model.nx
-            for tr in self.bank.tracks:
-                if tr.diverged_at is None:
-                    row[i:i + nx] = tr.estimator.x
-                    row[i + nx:i + 2 * nx] = np.diag(tr.estimator.P)
-                    row[i + 2 * nx] = tr.estimator.diagnostics.get("nis", np.nan)
-                    row[i + 2 * nx + 1] = tr.nees
-                else:
-                    row[i:i + 2 * nx + 2] = np.nan
-                i += 2 * nx + 2
-            flags += [tr.diverged_at is not None for tr in self.bank.tracks]
-        self.logger.append(row, np.array(flags, dtype=bool),
-                           [master.native.get(s) for s in self.exact])
-
-    def final(self, master: Master, t: float) -> None:
-        """The last row of a run an FMU stopped between two communication points: the signals
-        at ``t`` (the stopped FMU's outputs at its termination time; the others' at the last
-        communication point), no measurements or estimates."""
-        row = np.full(self.width, np.nan)
-        row[0] = t
-        row[1:1 + len(self.sig)] = master.bus[self.sig]
-        self.logger.append(row, np.zeros(self.n_flags, dtype=bool),
-                           [master.native.get(s) for s in self.exact])
-
-
-def _columns(master: Master, bank, model) -> tuple[list[str], list[int], list[str]]:
-    patterns = master.spec.log.signals
-    names = [n for n in master.slots
-             if not n.startswith(("noise.", "sensornoise."))
-             and any(fnmatch.fnmatch(n, p) for p in patterns)]
-    if bank:
-        for tname in master.spec.model.truth:
-            if tname not in names:
-                names.append(tname)
-    slots = [master.slots[n] for n in names]
-    cols = list(names)
-    flags = []
-    if bank:
-        cols += [f"z.{n}" for n in model.measurement_names]
-        flags += [f"z.{n}.received" for n in model.measurement_names]
-        for tr in bank.tracks:
-            cols += [f"est.{tr.name}.{s}" for s in model.state_names]
-            cols += [f"est.{tr.name}.var.{s}" for s in model.state_names]
-            cols += [f"est.{tr.name}.nis", f"est.{tr.name}.nees"]
-        flags += [f"est.{tr.name}.diverged" for tr in bank.tracks]
-    return cols, slots, flags
-
-
 #: files a run writes into its directory (``--force`` clears these, and the figures)
-RUN_OUTPUTS = ("log.parquet", "log.parquet.journal", "summary.json", "report.md", "map.bin")
+RUN_OUTPUTS = ("log.parquet", "log.parquet.journal", "simulation.json", "summary.json",
+               "report.md", "report.html", "map.bin", "densities.npz")
 
 
 def prepare_out_dir(out_dir: Path, force: bool = False) -> None:
@@ -160,36 +105,87 @@ def prepare_out_dir(out_dir: Path, force: bool = False) -> None:
                            f"({exc.strerror or exc})") from None
 
 
-def _write_summary(out_dir: Path, summary: dict) -> None:
-    path = out_dir / "summary.json"
-    tmp = path.with_name("summary.json.tmp")
-    tmp.write_text(json.dumps(summary, indent=2, sort_keys=True))
-    os.replace(tmp, path)
+
+def simulation_record(master: Master, bank: EstimatorBank | None, loaded: LoadedScenario,
+                      status: str, error: str) -> dict:
+    """What the simulate stage measured and how the run ended (``simulation.json``): status,
+    error, termination, the time grid reached, wall times of the FMUs and the master, the
+    estimators' time per step and divergence reasons, notes."""
+    rec = {
+        "scenario": master.system.name, "scenario_file": str(loaded.path), "seed": master.seed,
+        "status": status, "error": error, "steps": master.k, "step_s": master.h,
+        "start_time_s": master.t0, "end_time_s": master.t,
+        "timing": {k: round(v, 6) for k, v in master.timing().items()}, "estimators": {},
+    }
+    solvers = master.me_solvers()
+    rec["fmus"] = {
+        n.adapter.name: {"interface": n.adapter.interface, "fmi_version": n.adapter.md.fmiVersion,
+                         "solver": solvers.get(n.adapter.name),
+                         "period_steps": n.period, "time_s": round(n.time_s, 6)}
+        for n in master.nodes}
+    stop = master.terminated
+    if stop is not None:
+        rec["termination"] = {"fmu": stop.fmu, "time_s": stop.time, "reason": stop.reason}
+        rec["end_time_s"] = max(master.t, stop.time)
+    k = max(master.k, 1)
+    rec["timing"]["master_overhead_per_step_s"] = master.master_time_s / k
+    rec["timing"]["fmus_per_step_s"] = sum(n.time_s for n in master.nodes) / k
+    for tr in (bank.tracks if bank is not None else []):
+        times = np.asarray(tr.step_times)
+        m = {"time_per_step_s": float(np.median(times)) if times.size else float("nan"),
+             "time_per_step_p95_s":
+                 float(np.percentile(times, 95)) if times.size else float("nan"),
+             "total_time_s": float(times.sum())}
+        if tr.error:
+            m["error"] = tr.error
+        rec["estimators"][tr.name] = m
+    if master.noise_free:
+        spec = loaded.spec
+        rec["notes"] = noise_free_notes(master.system, master.noise_free,
+                                        spec.model is not None and spec.model.q_psd is not None)
+    return rec
 
 
-def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
-                 figures: bool | None = None, progress=None,
-                 master: Master | None = None) -> RunResult:
-    """Run ``loaded`` into ``out_dir`` (created). Always leaves a readable log and summary.
+def _as_loaded(scenario: LoadedScenario | str | Path) -> LoadedScenario:
+    if isinstance(scenario, LoadedScenario):
+        return scenario
+    from uwcosim.scenario import load_scenario
+
+    return load_scenario(scenario)
+
+
+def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None = None,
+             seed: int | None = None, progress: Callable | None = None,
+             master: Master | None = None, evaluate: bool = True) -> Path:
+    """Run ``scenario`` (loaded, or a file) into ``out_dir`` (created): ``log.parquet``,
+    ``simulation.json``, ``map.bin``, ``densities.npz`` (default ``out_dir``:
+    ``runs/<scenario file stem>``, as ``uwcosim run``); with ``evaluate`` also
+    ``summary.json`` (:func:`uwcosim.evaluation.evaluate`), on every exit path. Returns the run
+    directory. Always leaves a readable log.
 
     ``master``: a :class:`Master` of the same scenario to reuse (reset, its FMU instances kept
     and reset); the caller then owns it and closes it. Otherwise a new one is made and closed.
+    ``progress``: a master hook called after each step.
 
     In the main thread, SIGINT, SIGTERM and SIGHUP stop the run at the next step (status
     ``interrupted``, :class:`RunInterrupted` with exit status 128 + signal), and
     ``run.fmu_timeout_s`` is enforced; an FMU that does not come back is handled by the watcher
     of :mod:`uwcosim.runguard`, which finalizes the log and summary and ends the process.
+    A failure is raised (:class:`~uwcosim.errors.UwcosimError`) after the files are written.
     """
     from uwcosim.estimation import EstimatorBank
-    from uwcosim.evaluation.summary import summarize
+    from uwcosim.evaluation.summary import SIMULATION_FILE, write_json
+    from uwcosim.evaluation.summary import evaluate as evaluate_run
     from uwcosim.models.factory import build_model
 
-    out_dir = Path(out_dir)
+    loaded = _as_loaded(scenario)
+    out_dir = Path(out_dir) if out_dir is not None else Path("runs") / loaded.path.stem
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         probe = out_dir / ".write-test"
         probe.write_bytes(b"")
         probe.unlink()
+        (out_dir / SIMULATION_FILE).unlink(missing_ok=True)  # never a stale one
     except OSError as exc:
         raise UwcosimError(f"{out_dir}: output directory is not writable "
                            f"({exc.strerror or exc})") from None
@@ -222,6 +218,18 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
             return message
         return f"{message} (log up to t={last_time():g} kept in {log_path})"
 
+    def finish(status: str, error: str) -> None:
+        """``simulation.json`` and (with ``evaluate``) ``summary.json``."""
+        record = simulation_record(master, bank, loaded, status, error)
+        write_json(out_dir / SIMULATION_FILE, record)
+        if evaluate:
+            try:
+                evaluate_run(out_dir)
+            except Exception as exc:  # noqa: BLE001 - a summary on every exit path: say why
+                note = f"evaluation failed ({type(exc).__name__}: {exc}): no metrics"
+                write_json(out_dir / "summary.json", {
+                    **record, "estimators": {}, "notes": [*record.get("notes", []), note]})
+
     def finalize(status: str, message: str, code: int) -> str:
         """The signal watcher's finalization when the main thread is stuck in an FMU call."""
         if status == "interrupted":
@@ -230,11 +238,12 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
         if logger is not None:
             logger.close()
         try:
-            summary = summarize(master, bank, status, message, log_path)
+            finish(status, message)
         except Exception:  # noqa: BLE001 - the main thread may be mid-step: the essentials
-            summary = {"scenario": spec.name, "seed": master.seed, "status": status,
-                       "error": message, "estimators": {}}
-        _write_summary(out_dir, summary)
+            essentials = {"scenario": spec.name, "seed": master.seed, "status": status,
+                          "error": message, "estimators": {}}
+            write_json(out_dir / SIMULATION_FILE, essentials)
+            write_json(out_dir / "summary.json", essentials)
         return message
 
     with run_guard(spec.run.fmu_timeout_s) as guard:
@@ -246,17 +255,17 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
                 bank = EstimatorBank(master, model, str(loaded.path),
                                      bathy.extent if bathy is not None else None)
                 master.hooks.append(bank)
-            cols, slots, flags = _columns(master, bank, model)
+            cols, slots, flags = log_columns(master, bank, model)
             meta = {
                 "scenario_text": loaded.text, "scenario_sha256": loaded.sha256,
                 "scenario_path": loaded.path.name, "overrides": list(loaded.overrides),
                 "seed": master.seed, "versions": package_versions(),
                 "fmus": master.fmu_hashes(), "step": master.h, "start_time": master.t0,
             }
-            if bank is not None:  # what the report stage needs to read the log on its own
+            if bank is not None:  # what the evaluate and report stages need to read the log
                 meta.update(scenario_name=spec.name, truth=list(spec.model.truth),
                             states=list(model.state_names),
-                            measurements=list(model.measurement_names),
+                            measurements=list(master.sensors.names),
                             estimators={tr.name: spec.estimators[tr.name].type
                                         for tr in bank.tracks})
             if bathy is not None:
@@ -266,7 +275,8 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
             dtypes = {c: master.signal_dtype(c) for c in cols if c in master.out_vars}
             logger = RunLogger(log_path, cols, flags, meta, spec.log.chunk_steps, dtypes)
             exact = [master.slots[c] for c in logger.exact_columns]
-            hook = _LogHook(master, bank, logger, np.array(slots, dtype=np.intp), model, exact)
+            hook = LogRecorder(master, bank, logger, np.array(slots, dtype=np.intp), model,
+                               exact)
             hook(master)
             master.hooks.append(hook)
             if bank is not None and spec.output.density_snapshots:
@@ -312,30 +322,34 @@ def run_scenario(loaded: LoadedScenario, out_dir: Path, seed: int | None = None,
                         status, error = "failed", kept("internal error (see the traceback)")
                     elif master.terminated is not None:
                         status = "terminated"
-                    summary = summarize(master, bank, status, error, log_path)
-                    summary["scenario_file"] = str(loaded.path)
-                    if master.noise_free:
-                        summary["notes"] = noise_free_notes(
-                            master.system, master.noise_free,
-                            spec.model is not None and spec.model.q_psd is not None)
                     if snapshots is not None:
                         snapshots.save(out_dir / "densities.npz", list(model.state_names))
-                    _write_summary(out_dir, summary)
+                    finish(status, error)
                     guard.finished.set()
                 finally:
                     if owner:
                         master.close()
-    result = RunResult(out_dir, summary, log_path, status)
     if failure is not None:
         raise failure
-    if not (spec.output.figures if figures is None else figures):
+    return out_dir
+
+
+def run_scenario(scenario: LoadedScenario | str | Path, out_dir: str | Path | None = None,
+                 seed: int | None = None, figures: bool | None = None,
+                 progress: Callable | None = None, master: Master | None = None) -> RunResult:
+    """:func:`simulate`, :func:`~uwcosim.evaluation.evaluate` and (unless ``figures`` is
+    false, or ``[output] figures`` when None) :func:`~uwcosim.report.report` of ``scenario``
+    into ``out_dir``. A failed or interrupted run raises after its log and summary are written.
+    """
+    import json
+
+    loaded = _as_loaded(scenario)
+    out_dir = simulate(loaded, out_dir, seed=seed, progress=progress, master=master)
+    summary = json.loads((out_dir / "summary.json").read_text())
+    result = RunResult(out_dir, summary, out_dir / "log.parquet", summary["status"])
+    if not (loaded.spec.output.figures if figures is None else figures):
         return result
-    if bank:
-        from uwcosim.report import report_run
+    from uwcosim.report import report_run
 
-        report_run(out_dir)
-    else:
-        from uwcosim.plots.signals import write_signal_report
-
-        write_signal_report(out_dir)
+    report_run(out_dir, summary=summary)
     return result

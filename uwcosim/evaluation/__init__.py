@@ -1,4 +1,5 @@
-"""Evaluation of runs: metrics (:mod:`uwcosim.evaluation.metrics`) and the run summary."""
+"""Evaluation of runs: metrics (:mod:`uwcosim.evaluation.metrics`) and the evaluate stage,
+:func:`evaluate` (``summary.json`` of a run directory from its files alone)."""
 
 from uwcosim.evaluation.metrics import (
     anees,
@@ -13,10 +14,12 @@ from uwcosim.evaluation.metrics import (
     run_rmse,
     step_time_stats,
 )
+from uwcosim.evaluation.summary import evaluate
 
 __all__ = [
     "anees",
     "chi2_band",
+    "evaluate",
     "mean_over_runs",
     "nees",
     "nis_consistency",

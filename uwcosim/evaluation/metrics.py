@@ -8,23 +8,27 @@ without a value (no update, a diverged filter) and is left out.
   combined (Euclidean) ``sqrt(mean_k |e_k|^2)`` over the position (or velocity) axes; over ``ST``
   runs eq. (56) averages the runs' RMSEs (:func:`mean_over_runs`). :func:`rmse_per_step` is the
   per-time RMSE over runs (seed 001 eq. 43 for one run, Huang et al. 2018).
-- NEES ``e' P^-1 e`` (Cholesky solves) and NIS with two-sided chi-square bounds
-  (:func:`chi2_band`): the mean of ``M`` independent ``chi2(d)`` values lies in
-  ``chi2.ppf([a/2, 1 - a/2], M d) / M`` with probability ``1 - a``. ANEES is the mean NEES over
-  runs (per step) or over runs and time; divided by ``n`` it is 1 for a consistent filter.
+- NEES ``e' P^-1 e`` (LU solves; also the estimator bank's per-step NEES) and NIS
+  with two-sided chi-square bounds (:func:`chi2_band`): the mean of ``M`` independent
+  ``chi2(d)`` values lies in ``chi2.ppf([a/2, 1 - a/2], M d) / M`` with probability
+  ``1 - a``. ANEES is the mean NEES over runs (per step) or over runs and time; divided by
+  ``n`` it is 1 for a consistent filter.
 - Time per step: median and 95th percentile.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.special import gammaincinv
 
 _POSITION = (("x", "y"), ("px", "py"))
 _VELOCITY = (("vx", "vy"),)
 
 
-def position_velocity_indices(state_names) -> tuple[list[int], list[int]]:
+def position_velocity_indices(state_names: Sequence[str]) -> tuple[list[int], list[int]]:
     """Indices of the position and velocity states from their names (TAN or CV order)."""
     names = list(state_names)
     pos = next(([names.index(a) for a in p] for p in _POSITION if set(p) <= set(names)), [])
@@ -48,22 +52,28 @@ def rmse_combined(err: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(err[ok] ** 2, axis=1))))
 
 
-def run_rmse(x_true: np.ndarray, x_est: np.ndarray, state_names) -> dict[str, float]:
-    """Position and velocity RMSE of one run: combined and per axis (seed 000 eq. 56, ST = 1)."""
+#: per-axis RMSE keys: (label, unit, axis names), the same for every model (``px``/``py`` of a
+#: CV model are the ``x``/``y`` axes)
+RMSE_KEYS = (("position", "m", ("x", "y")), ("velocity", "mps", ("vx", "vy")))
+
+
+def run_rmse(x_true: np.ndarray, x_est: np.ndarray,
+             state_names: Sequence[str]) -> dict[str, float]:
+    """Position and velocity RMSE of one run, combined and per axis (seed 000 eq. 56, ST = 1):
+    ``rmse_position_m``, ``rmse_x_m``, ``rmse_y_m``, ``rmse_velocity_mps``, ``rmse_vx_mps``,
+    ``rmse_vy_mps`` (the keys of ``summary.json`` and of a campaign's tables)."""
     err = np.asarray(x_est, dtype=float) - np.asarray(x_true, dtype=float)
-    names = list(state_names)
-    pos, vel = position_velocity_indices(names)
     out: dict[str, float] = {}
-    for label, idx in (("position", pos), ("velocity", vel)):
+    for (label, unit, axes), idx in zip(RMSE_KEYS, position_velocity_indices(state_names)):
         if not idx:
             continue
-        out[label] = rmse_combined(err[:, idx])
-        for i, r in zip(idx, rmse(err[:, idx])):
-            out[f"{label}_{names[i]}"] = float(r)
+        out[f"rmse_{label}_{unit}"] = rmse_combined(err[:, idx])
+        for ax, r in zip(axes, rmse(err[:, idx])):
+            out[f"rmse_{ax}_{unit}"] = float(r)
     return out
 
 
-def mean_over_runs(values) -> float:
+def mean_over_runs(values: ArrayLike) -> float:
     """Seed 000 eq. (56): the average of the runs' RMSEs, ``(1/ST) sum_i RMSE_i``."""
     v = np.asarray(values, dtype=float)
     return float(np.nanmean(v))
@@ -78,7 +88,9 @@ def rmse_per_step(err_runs: np.ndarray) -> np.ndarray:
 def nees(err: np.ndarray, P: np.ndarray) -> np.ndarray:
     """``e_k' P_k^-1 e_k`` per step from ``(T, n)`` errors and ``(T, n, n)`` covariances.
 
-    Batched Cholesky solves; a step whose ``P`` is not positive definite (or has NaN) gives NaN.
+    Batched LU solves (``numpy.linalg.solve``). A step with a NaN, or whose ``P`` is singular,
+    gives NaN; a ``P`` that is not positive definite gives its quadratic form, which may be
+    negative (the estimator bank's divergence check flags a negative NEES).
     """
     err = np.asarray(err, dtype=float)
     P = np.asarray(P, dtype=float)
@@ -87,29 +99,28 @@ def nees(err: np.ndarray, P: np.ndarray) -> np.ndarray:
     idx = np.flatnonzero(ok)
     if idx.size == 0:
         return out
+    e = err[idx]
     try:
-        L = np.linalg.cholesky(P[idx])
-    except np.linalg.LinAlgError:  # some step is not PD: step by step
+        y = np.linalg.solve(P[idx], e[..., None])[..., 0]
+    except np.linalg.LinAlgError:  # some step is singular: step by step
         for k in idx:
             try:
-                Lk = np.linalg.cholesky(P[k])
+                out[k] = err[k] @ np.linalg.solve(P[k], err[k])
             except np.linalg.LinAlgError:
                 continue
-            y = np.linalg.solve(Lk, err[k])
-            out[k] = y @ y
         return out
-    y = np.linalg.solve(L, err[idx][..., None])[..., 0]  # L y = e
-    out[idx] = np.sum(y * y, axis=-1)
+    # one step (the estimator bank's call): the dot product, bit for bit ``e @ solve(P, e)``
+    out[idx] = e[0] @ y[0] if idx.size == 1 else np.einsum("ki,ki->k", e, y)
     return out
 
 
-def chi2_ppf(q, dof):
+def chi2_ppf(q: ArrayLike, dof: ArrayLike) -> np.ndarray:
     """Quantile of the chi-square distribution, ``2 P^-1(dof/2, q)`` (scipy.special: importing
     scipy.stats costs most of a second at start-up)."""
     return 2.0 * gammaincinv(np.asarray(dof, dtype=float) / 2.0, q)
 
 
-def chi2_band(dof, n: int = 1, p: float = 0.95) -> tuple[float, float]:
+def chi2_band(dof: ArrayLike, n: int = 1, p: float = 0.95) -> tuple[float, float]:
     """Two-sided ``p`` bounds of the mean of ``n`` independent ``chi2(dof)`` values."""
     a = 0.5 * (1.0 - p)
     lo, hi = chi2_ppf(np.array([a, 1.0 - a]), np.asarray(dof, dtype=float) * n)
@@ -162,7 +173,7 @@ def nis_consistency(nis: np.ndarray, dof: np.ndarray, p: float = 0.95) -> dict:
     }
 
 
-def step_time_stats(times) -> dict[str, float]:
+def step_time_stats(times: ArrayLike) -> dict[str, float]:
     """Median, 95th percentile and mean of per-step wall times (seconds)."""
     t = np.asarray(times, dtype=float)
     t = t[np.isfinite(t)]

@@ -1,41 +1,49 @@
-"""The run summary (``summary.json``), computed from the logged outputs.
+"""The evaluate stage: ``summary.json`` of a run, from the files of its run directory alone.
+
+:func:`evaluate` reads ``log.parquet`` (or its journal after ``kill -9``) with its ``uwcosim``
+metadata, and ``simulation.json`` (written by the simulate stage, :func:`uwcosim.runner.simulate`:
+status, error, termination, wall times, the estimators' time per step and divergence reasons,
+notes). No scenario is loaded and no FMU is touched.
 
 Per estimator: position and velocity RMSE of the run (seed 000 eq. 56 with ST = 1: the root of
-the time average of the squared error, over steps 1..K), per-axis RMSE, ANEES (time average of
-the NEES divided by the state dimension; 1 for a consistent filter), the fraction of NIS values
-inside their two-sided chi-square 95% band, the time per step (median and 95th percentile) and
-the divergence flag. Timing: wall time in each FMU, in the master itself and per estimator.
-A plain co-simulation run (no estimators) has an empty ``estimators``; a run an FMU stopped has
-status ``terminated`` and ``termination`` ``{fmu, time_s, reason}``.
+the time average of the squared error, over steps 1..K), per-axis RMSE
+(:func:`~uwcosim.evaluation.metrics.run_rmse`), ANEES (time average of the NEES divided by the
+state dimension; 1 for a consistent filter), the fraction of NEES values inside their two-sided
+chi-square 95% band, the mean NIS, the divergence flag, and from ``simulation.json`` the time
+per step (median, 95th percentile) and total. A plain co-simulation run (no estimators) has an
+empty ``estimators``; a run an FMU stopped has status ``terminated`` and ``termination``
+``{fmu, time_s, reason}``.
+
+Older runs: a log without the names of states, truth signals and estimators in its metadata has
+them recovered from the column names and ``[model] truth`` of the logged scenario text; a run
+directory without ``simulation.json`` takes status and timing from its ``summary.json`` (written
+by older versions), or, without either (a run killed hard), has status ``unknown`` and no timing.
 """
 
 from __future__ import annotations
 
+import json
+import os
+import tomllib
+from pathlib import Path
+
 import numpy as np
 
-from uwcosim.evaluation.metrics import (
-    chi2_ppf,
-    position_velocity_indices,
-    rmse,
-    rmse_combined,
-)
+from uwcosim.errors import UwcosimError
+from uwcosim.evaluation.metrics import chi2_ppf, run_rmse
 from uwcosim.runlog import read_log
+
+#: what the simulate stage writes next to the log (status, timing, ...)
+SIMULATION_FILE = "simulation.json"
+#: keys of a summary that come from the simulation (not from the log's metrics)
+_ESTIMATOR_RUN_KEYS = ("time_per_step_s", "time_per_step_p95_s", "total_time_s", "error")
 
 
 def estimator_metrics(cols: dict, name: str, truth: list[str], states: list[str]) -> dict:
     """Metrics of estimator ``name`` from log columns (rows 1.. are the filtered steps)."""
     X = np.stack([cols[t] for t in truth], axis=1)[1:]
     E = np.stack([cols[f"est.{name}.{s}"] for s in states], axis=1)[1:]
-    err = E - X
-    pos, vel = position_velocity_indices(states)
-    out = {}
-    for label, unit, idx, axes in (("position", "m", pos, ("x", "y")),
-                                   ("velocity", "mps", vel, ("vx", "vy"))):
-        if not idx:
-            continue
-        out[f"rmse_{label}_{unit}"] = rmse_combined(err[:, idx])
-        for ax, r in zip(axes, rmse(err[:, idx])):
-            out[f"rmse_{ax}_{unit}"] = float(r)
+    out = run_rmse(X, E, states)
     nees = cols[f"est.{name}.nees"][1:]
     nees = nees[np.isfinite(nees)]
     nx = len(states)
@@ -52,42 +60,120 @@ def estimator_metrics(cols: dict, name: str, truth: list[str], states: list[str]
     return out
 
 
-def summarize(master, bank, status: str, error: str, log_path) -> dict:
-    summary = {
-        "scenario": master.system.name, "seed": master.seed, "status": status, "error": error,
-        "steps": master.k, "step_s": master.h, "estimators": {},
-        "start_time_s": master.t0, "end_time_s": master.t,
-        "timing": {k: round(v, 6) for k, v in master.timing().items()},
-    }
-    solvers = master.me_solvers()
-    summary["fmus"] = {
-        n.adapter.name: {"interface": n.adapter.interface, "fmi_version": n.adapter.md.fmiVersion,
-                         "solver": solvers.get(n.adapter.name),
-                         "period_steps": n.period, "time_s": round(n.time_s, 6)}
-        for n in master.nodes}
-    stop = master.terminated
-    if stop is not None:
-        summary["termination"] = {"fmu": stop.fmu, "time_s": stop.time, "reason": stop.reason}
-        summary["end_time_s"] = max(master.t, stop.time)
-    k = max(master.k, 1)
-    summary["timing"]["master_overhead_per_step_s"] = master.master_time_s / k
-    summary["timing"]["fmus_per_step_s"] = sum(n.time_s for n in master.nodes) / k
-    if bank is None:
-        return summary
+def _model_truth_from_text(meta: dict) -> list[str]:
+    """``[model] truth`` of the logged scenario text with the logged overrides applied."""
+    from uwcosim.scenario.load import _apply, parse_overrides
+
     try:
-        cols, _ = read_log(log_path)
-    except Exception:  # noqa: BLE001 - no log written (failure before the first row)
-        return summary
-    if cols["time"].size < 2:
-        return summary
-    for tr in bank.tracks:
-        m = estimator_metrics(cols, tr.name, list(master.spec.model.truth),
-                              list(bank.model.state_names))
-        times = np.asarray(tr.step_times)
-        m["time_per_step_s"] = float(np.median(times)) if times.size else float("nan")
-        m["time_per_step_p95_s"] = float(np.percentile(times, 95)) if times.size else float("nan")
-        m["total_time_s"] = float(times.sum())
-        if tr.error:
-            m["error"] = tr.error
-        summary["estimators"][tr.name] = m
+        data = tomllib.loads(meta.get("scenario_text", ""))
+        for keys, value in parse_overrides(meta.get("overrides", []), "log"):
+            _apply(data, keys, value, "log")
+    except (tomllib.TOMLDecodeError, UwcosimError):
+        return []
+    truth = (data.get("model") or {}).get("truth") or []
+    return [str(t) for t in truth]
+
+
+def log_names(cols: dict, meta: dict) -> tuple[list[str], list[str], list[str], list[str]]:
+    """``(estimators, states, truth signals, notes)`` of a log: from its metadata, or for an
+    older log from the column names (``est.NAME.var.STATE``) and the logged scenario text. The
+    truth is empty when some of its signals are not in the log (a note says which)."""
+    names = [c[4:-4] for c in cols if c.startswith("est.") and c.endswith(".nis")]
+    states: list[str] = []
+    if names:
+        prefix = f"est.{names[0]}.var."
+        states = [c[len(prefix):] for c in cols if c.startswith(prefix)]
+    if "estimators" in meta:
+        names = list(meta["estimators"])
+    states = list(meta.get("states", states))
+    truth = list(meta.get("truth", [])) or (_model_truth_from_text(meta) if names else [])
+    notes = []
+    if names and "truth" not in meta:
+        notes.append("names of states and truth signals recovered from an older log's columns "
+                     "and scenario text")
+    missing = [c for c in truth if c not in cols]
+    if missing:
+        notes.append(f"truth signals not in the log: {', '.join(missing)}")
+        truth = []
+    return names, states, truth, notes
+
+
+def write_json(path: Path, data: dict) -> None:
+    """Write ``data`` to ``path`` atomically (a reader never sees half a file)."""
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2, sort_keys=True))
+    os.replace(tmp, path)
+
+
+def _read_json(path: Path) -> dict | None:
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UwcosimError(f"{path}: not a readable JSON file ({exc})") from None
+    if not isinstance(data, dict):
+        raise UwcosimError(f"{path}: expected a JSON object")
+    return data
+
+
+def _without_metrics(summary: dict) -> dict:
+    """What an older ``summary.json`` says about the simulation (its metrics are recomputed)."""
+    out = dict(summary)
+    out["estimators"] = {n: {k: v for k, v in m.items() if k in _ESTIMATOR_RUN_KEYS}
+                         for n, m in (summary.get("estimators") or {}).items()}
+    return out
+
+
+def evaluate(run_dir: str | Path, out: str | Path | None = None, write: bool = True) -> dict:
+    """The summary of the run in ``run_dir`` from its files alone; written to
+    ``summary.json`` in ``out`` (default: the run directory) unless ``write`` is false.
+
+    Raises :class:`~uwcosim.errors.UwcosimError` when ``run_dir`` holds neither a log nor a
+    ``simulation.json``."""
+    run_dir = Path(run_dir)
+    log_path = run_dir / "log.parquet"
+    sim = _read_json(run_dir / SIMULATION_FILE)
+    notes: list[str] = []
+    if sim is None:
+        old = _read_json(run_dir / "summary.json")
+        if old is not None:
+            sim = _without_metrics(old)
+    has_log = log_path.is_file() or log_path.with_name(log_path.name + ".journal").is_file()
+    if sim is None and not has_log:
+        raise UwcosimError(f"{run_dir}: not a run directory (no log.parquet, no "
+                           f"{SIMULATION_FILE})")
+    cols, meta = {}, {}
+    if has_log:
+        try:
+            cols, meta = read_log(log_path)
+        except UwcosimError:
+            if sim is None:
+                raise
+    t = cols.get("time", np.zeros(0))
+    if sim is None:
+        step = float(meta.get("step", np.diff(t[:2])[0] if t.size > 1 else float("nan")))
+        sim = {"scenario": meta.get("scenario_name",
+                                    Path(meta.get("scenario_path", "?")).stem),
+               "seed": meta.get("seed"), "status": "unknown", "error": "",
+               "steps": max(int(t.size) - 1, 0), "step_s": step, "timing": {},
+               "estimators": {}}
+        notes.append(f"no {SIMULATION_FILE} or summary.json (a run killed hard?): status and "
+                     f"timing unknown, metrics recomputed from the log")
+    summary = dict(sim)
+    run_info = summary.pop("estimators", None) or {}
+    summary["estimators"] = {}
+    names, states, truth, name_notes = log_names(cols, meta)
+    notes += name_notes if names else []
+    if t.size >= 2 and truth and states:
+        for name in names:
+            m = estimator_metrics(cols, name, truth, states)
+            m.update(run_info.get(name, {}))
+            summary["estimators"][name] = m
+    if notes:
+        summary["notes"] = list(dict.fromkeys([*summary.get("notes", []), *notes]))
+    if write:
+        out = Path(out) if out is not None else run_dir
+        out.mkdir(parents=True, exist_ok=True)
+        write_json(out / "summary.json", summary)
     return summary

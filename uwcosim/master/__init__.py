@@ -1,12 +1,16 @@
 """The co-simulation master: FMU adapters, connection graph, sources and the stepping loop.
 
 ``from uwcosim.master import Master, System, FMU, Control, Noise, Sensor`` builds and runs a
-system in code (see :mod:`uwcosim.master.system`); the names are imported on first use.
+system in code (see :mod:`uwcosim.master.system`); ``Master.measurement()`` gives the step's
+:class:`Measurement` from the master's :class:`SensorBank`. The names are imported on first
+use.
 """
 
 _EXPORTS = {"Master": "uwcosim.master.master", "System": "uwcosim.master.system",
             "FMU": "uwcosim.master.system", "Control": "uwcosim.master.system",
-            "Noise": "uwcosim.master.system", "Sensor": "uwcosim.master.system"}
+            "Noise": "uwcosim.master.system", "Sensor": "uwcosim.master.system",
+            "Measurement": "uwcosim.master.measurement",
+            "SensorBank": "uwcosim.master.measurement"}
 
 __all__ = list(_EXPORTS)
 

@@ -22,6 +22,10 @@ import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from fmpy.model_description import ModelDescription, ModelVariable
 
 import numpy as np
 
@@ -43,7 +47,7 @@ __all__ = ["Binding", "FMUAdapter", "read_description", "sha256_file"]
 STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 
 
-def read_description(path: Path, interface: str | None = None):
+def read_description(path: Path, interface: str | None = None) -> ModelDescription:
     """Model description of an FMU archive, with one-line errors for the usual faults."""
     return open_description(path, interface)
 
@@ -105,7 +109,7 @@ class FMUAdapter:
         self.time_s = 0.0  # wall time spent in this FMU's calls (set by the master)
 
     # -- variables --------------------------------------------------------------------------
-    def variable(self, name: str):
+    def variable(self, name: str) -> ModelVariable:
         v = self.variables.get(name)
         if v is None:
             mapped = " (variable map: roles " + ", ".join(self.varmap.aliases) + ")" \

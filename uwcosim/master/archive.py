@@ -18,6 +18,10 @@ import hashlib
 import zipfile
 import zlib
 from pathlib import Path, PurePosixPath
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from fmpy.model_description import ModelDescription
 
 from uwcosim.errors import FMUError
 
@@ -88,7 +92,7 @@ def archive_problems(path: str | Path) -> list[str]:
     return []
 
 
-def read_model(path: str | Path):
+def read_model(path: str | Path) -> ModelDescription:
     """The model description of an archive :func:`archive_problems` found readable."""
     from fmpy.model_description import read_model_description
 
@@ -98,7 +102,8 @@ def read_model(path: str | Path):
         raise FMUError(f"{path}: invalid modelDescription.xml ({exc})") from None
 
 
-def binary_problems(path: str | Path, md, interfaces: tuple[str, ...] = ("cs", "me"),
+def binary_problems(path: str | Path, md: ModelDescription,
+                    interfaces: tuple[str, ...] = ("cs", "me"),
                     names: list[str] | None = None) -> list[str]:
     """A problem if an interface in ``interfaces`` the FMU declares has no shared library for
     this platform (FMI 2: ``binaries/<fmpy.platform>``, FMI 3: ``binaries/<platform_tuple>``)."""
@@ -120,7 +125,7 @@ def binary_problems(path: str | Path, md, interfaces: tuple[str, ...] = ("cs", "
     return []
 
 
-def open_description(path: str | Path, interface: str | None = None):
+def open_description(path: str | Path, interface: str | None = None) -> ModelDescription:
     """Validate the archive (and the binary for ``interface``, or every interface when None)
     and return its model description; the first problem as a one-line :class:`FMUError`."""
     path = Path(path)

@@ -10,11 +10,15 @@ is Gauss-Seidel: a downstream FMU sees its upstream's outputs of the same commun
 from __future__ import annotations
 
 from graphlib import CycleError, TopologicalSorter
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from fmpy.model_description import ModelDescription
 
 from uwcosim.errors import AlgebraicLoopError
 
 
-def feedthrough(md) -> dict[str, set[str]]:
+def feedthrough(md: ModelDescription) -> dict[str, set[str]]:
     """``{output name: {input names it depends on directly}}`` from a model description."""
     inputs = {v.name for v in md.modelVariables if v.causality == "input"}
     deps: dict[str, set[str]] = {}

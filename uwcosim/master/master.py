@@ -6,10 +6,12 @@ steps: ``t = t0 + k*h``, never accumulated. Each FMU runs at an integer multiple
 ``h``; FMUs are stepped Gauss-Seidel in dependency order. Signals live in one flat float64
 array, the *bus*: every FMU output and every source has a slot, and each FMU input reads a slot.
 Integer and Boolean values travel on the bus as float64 (exact up to 2**53); String outputs
-have a slot (NaN) and their text in :attr:`Master.text`. Sources (controls, noise, sensor
-sampling and losses) are sampled from the master's seeded streams in chunks as the run goes
-(memory does not depend on the duration); closed-loop sources (waypoints) are evaluated per
-step.
+have a slot (NaN) and their text in :attr:`Master.text`. Sources (controls, noise) are sampled
+from the master's seeded streams in chunks as the run goes (memory does not depend on the
+duration); closed-loop sources (waypoints) are evaluated per step. The sensors (sampling, loss,
+noise, the measurement vector) are the master's :class:`~uwcosim.master.measurement.SensorBank`
+(:attr:`Master.sensors`, :meth:`Master.measurement`); one FMU bound to the bus is a
+:class:`~uwcosim.master.node.Node`.
 
 An FMU that asks to stop (FMI 2 ``fmi2Terminated``, FMI 3 ``terminateSimulation``) ends the run:
 :attr:`Master.terminated` holds who, when and why, and :meth:`Master.run_until` returns (or,
@@ -31,80 +33,49 @@ from __future__ import annotations
 import shutil
 import tempfile
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass, field
+from collections.abc import Callable
 from multiprocessing import util as mp_util
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from uwcosim.errors import FMUError, ScenarioError, UwcosimError
 from uwcosim.master import vartypes
-from uwcosim.master.adapter import Binding, FMUAdapter
+from uwcosim.master.adapter import FMUAdapter
+from uwcosim.master.checks import SystemChecks
 from uwcosim.master.graph import stepping_order
+from uwcosim.master.measurement import Measurement, SensorBank
+from uwcosim.master.node import Node, build_node
 from uwcosim.master.proxy import ProxyAdapter
 from uwcosim.master.sources import (
-    Sensor,
     StageInputs,
     TableControl,
     WaypointHeading,
-    build_sensors,
     control_problem,
     sample_sources,
 )
 from uwcosim.master.system import System, Termination, from_scenario
+
+if TYPE_CHECKING:
+    from uwcosim.scenario.load import LoadedScenario
+
 from uwcosim.master.varmap import (
     ROLES,
-    connection_affine,
     load_entries,
     noise_free_sources,
 )
-
-#: native values kept exactly (not only as float64 on the bus) for logging
-_EXACT_DTYPES = ("int64", "uint64", "object")
-
-
-@dataclass
-class _Node:
-    adapter: FMUAdapter
-    period: int
-    inputs: Binding
-    in_slots: np.ndarray
-    outputs: Binding
-    out_slots: np.ndarray
-    input_fn: Callable | None = None
-    time_s: float = 0.0
-    #: String inputs: (member index, bus slot of the String source)
-    str_inputs: list[tuple[int, int]] = field(default_factory=list)
-    #: outputs kept exactly (String, Int64, UInt64): (member index, bus slot)
-    exact_outputs: list[tuple[int, int]] = field(default_factory=list)
-    #: indices of the numeric outputs when some are Strings (None: all numeric)
-    numeric: np.ndarray | None = None
-    #: per-input ``(factor, offset)`` of connections with a linear transformation, or None
-    in_affine: tuple[np.ndarray, np.ndarray] | None = None
-
-    def gather(self, bus: np.ndarray) -> None:
-        """Copy this FMU's inputs from the bus (``factor * value + offset`` where given)."""
-        np.take(bus, self.in_slots, out=self.inputs.view)
-        if self.in_affine is not None:
-            self.inputs.view *= self.in_affine[0]
-            self.inputs.view += self.in_affine[1]
 
 
 def _remove_tree(path: str) -> None:
     shutil.rmtree(path, ignore_errors=True)
 
 
-class _Skipped(Exception):
-    """A check that refers to an FMU that could not be opened (already reported)."""
-
-
-class Master:
+class Master(SystemChecks):
     """Co-simulation of one system (or loaded scenario) with one seed."""
 
-    def __init__(self, system, seed: int | None = None, workdir: Path | None = None,
-                 check_only: bool = False) -> None:
+    def __init__(self, system: System | LoadedScenario, seed: int | None = None,
+                 workdir: Path | None = None, check_only: bool = False) -> None:
         """``check_only``: open the FMUs' model descriptions and check the system against them,
         collecting every problem in :attr:`problems` (instead of raising the first); nothing
         is built to run (``uwcosim check``, :mod:`uwcosim.scenario.validate`)."""
@@ -150,19 +121,6 @@ class Master:
     @property
     def t(self) -> float:
         return self.t0 + self.k * self.h
-
-    def _where(self, key: str) -> str:
-        return f"{self.system.where}: key '{key}'"
-
-    @contextmanager
-    def _collect(self) -> Iterator[None]:
-        """Record a problem of the block in :attr:`problems` and go on with the next check."""
-        try:
-            yield
-        except _Skipped:
-            pass
-        except UwcosimError as exc:
-            self.problems.append(exc)
 
     def _build(self) -> None:
         """Check every input of the system against the FMUs (all problems, :attr:`problems`),
@@ -243,57 +201,14 @@ class Master:
         self.text: dict[int, str] = {}
         #: exact native values of the String/Int64/UInt64 outputs, by bus slot
         self.native: dict[int, object] = {}
-        self.nodes: list[_Node] = [self._node(name) for name in order]
+        self.nodes: list[Node] = [self._node(name) for name in order]
         self._sample_sources()
-        self.sensors = self._build_sensors()
 
-    def _check_connection(self, i: int, conn, drivers: dict) -> None:
-        src, dst = conn[0], conn[1]
-        key = f"connections[{i}]"
-        if len(conn) > 2:
-            self.transforms[dst] = connection_affine(conn[2], f"{self._where(key)}")
-        self._slot(src, key)
-        self._check_input(dst, key, drivers, src)
-        dvar = self._variable(dst, key)
-        svar = self.out_vars.get(src)  # None: a source of the master (a float)
-        if svar is None:
-            problem = None if vartypes.kind(dvar) == "float" else "expected a Real input"
-        else:
-            problem = vartypes.connection_problem(svar, dvar)
-        if problem:
-            if problem.startswith("cannot connect") and " (" in problem:
-                problem = problem.split(" (", 1)[1].rstrip(")")  # the names are ours
-            raise ScenarioError(
-                f"{self._where(key)}: cannot connect {src!r} "
-                f"({'Float64' if svar is None else svar.type}) to {dst!r} ({dvar.type}): "
-                f"{problem}")
-
-    def _node(self, name: str) -> _Node:
-        ad = self.adapters[name]
-        drivers = self.drivers
-        ins = sorted(k.split(".", 1)[1] for k in drivers if k.split(".", 1)[0] == name)
-        outs = [k.split(".", 1)[1] for k in self.out_vars if k.split(".", 1)[0] == name]
-        node = _Node(
-            adapter=ad, period=self.system.fmus[name].period,
-            inputs=ad.bind(ins),
-            in_slots=np.array([self.slots[drivers[f"{name}.{i}"]] for i in ins], dtype=np.intp),
-            outputs=ad.bind(outs),
-            out_slots=np.array([self.slots[f"{name}.{o}"] for o in outs], dtype=np.intp),
-        )
-        node.str_inputs = [(j, self.slots[drivers[f"{name}.{i}"]]) for j, i in enumerate(ins)
-                           if vartypes.kind(ad.variables[i]) == "string"]
-        exact = [j for j, o in enumerate(outs)
-                 if np.dtype(vartypes.numpy_dtype(ad.variables[o])).name in _EXACT_DTYPES]
-        node.exact_outputs = [(j, int(node.out_slots[j])) for j in exact]
-        strings = {j for j, o in enumerate(outs) if vartypes.kind(ad.variables[o]) == "string"}
-        if strings:
-            node.numeric = np.array([j for j in range(len(outs)) if j not in strings],
-                                    dtype=np.intp)
-        if any(f"{name}.{i}" in self.transforms for i in ins):
-            fo = np.array([self.transforms.get(f"{name}.{i}", (1.0, 0.0)) for i in ins])
-            node.in_affine = (fo[:, 0].copy(), fo[:, 1].copy())
-        if ad.interface == "me":
-            node.input_fn = self._continuous_inputs(ins, name)
+    def _node(self, name: str) -> Node:
+        node = build_node(name, self.adapters[name], self.system.fmus[name].period,
+                          self.drivers, self.slots, self.out_vars, self.transforms)
+        if node.adapter.interface == "me":
+            node.input_fn = self._continuous_inputs(node.inputs.names, name)
         return node
 
     def _open(self, name: str, f) -> FMUAdapter | ProxyAdapter:
@@ -320,57 +235,6 @@ class Master:
         ad.check_values({**f.parameters, **f.start}, f"{self.system.where}: key 'fmus.{name}'")
         return ad
 
-    def _variable(self, signal: str, key: str):
-        """The FMU variable named by ``fmu.variable``, or a one-line ScenarioError."""
-        fmu, _, var = signal.partition(".")
-        if fmu in self._broken:
-            raise _Skipped(signal)
-        if fmu not in self.adapters:
-            raise ScenarioError(f"{self._where(key)}: unknown FMU {fmu!r} in {signal!r} "
-                                f"(FMUs: {', '.join(self.adapters)})")
-        v = self.adapters[fmu].variables.get(var)
-        if v is None:
-            raise ScenarioError(self._no_variable(fmu, var, key))
-        return v
-
-    def _slot(self, signal: str, key: str) -> int:
-        if signal not in self.slots:
-            v = self._variable(signal, key)
-            what = "an output" if v.causality != "output" else "an output of a supported type"
-            raise ScenarioError(f"{self._where(key)}: {signal!r} is not {what} "
-                                f"(causality {v.causality!r}, type {v.type})")
-        return self.slots[signal]
-
-    def _numeric_slot(self, signal: str, key: str) -> int:
-        slot = self._slot(signal, key)
-        v = self.out_vars.get(signal)
-        if v is not None and vartypes.kind(v) == "string":
-            raise ScenarioError(f"{self._where(key)}: {signal!r} is a String output; "
-                                f"expected a numeric one")
-        return slot
-
-    def _no_variable(self, fmu: str, var: str, key: str) -> str:
-        vmap = self.adapters[fmu].varmap
-        hint = ""
-        if vmap.aliases:
-            hint = (f" (fmus.{fmu}.map gives roles {', '.join(vmap.aliases)}; "
-                    f"map {var!r} there)")
-        return f"{self._where(key)}: FMU {fmu!r} has no variable {var!r}{hint}"
-
-    def _check_input(self, signal: str, key: str, drivers: dict, source: str,
-                     float_only: bool = False) -> None:
-        v = self._variable(signal, key)
-        if v.causality != "input":
-            raise ScenarioError(f"{self._where(key)}: {signal!r} has causality "
-                                f"{v.causality!r}, expected 'input'")
-        if float_only and vartypes.kind(v) != "float":
-            raise ScenarioError(f"{self._where(key)}: {signal!r} is of type {v.type}; noise "
-                                f"drives only Real/Float inputs")
-        if signal in drivers:
-            raise ScenarioError(f"{self._where(key)}: input {signal!r} is already driven by "
-                                f"{drivers[signal]!r}")
-        drivers[signal] = source
-
     def _continuous_inputs(self, ins: list[str], name: str) -> Callable | None:
         """For ME FMUs: table controls of Real inputs are evaluated at the integrator's stage
         times (discrete inputs are set at communication points only)."""
@@ -385,15 +249,28 @@ class Master:
         return StageInputs(pairs) if pairs else None
 
     def _sample_sources(self) -> None:
+        """The seeded sources of a run: controls, noise, and the sensors (:attr:`sensors`)."""
+        system, n = self.system, self.n_steps + 1
         self.sources, self.source_slots, self.dynamic = sample_sources(
-            self.system, self.controls, self.slots, self.seed, self.n_steps + 1,
-            skip=self.noise_free)
-
-    def _build_sensors(self) -> dict[str, Sensor]:
-        slots = {sname: np.array([self._numeric_slot(o, f"sensors.{sname}.outputs")
-                                  for o in s.outputs], dtype=np.intp)
-                 for sname, s in self.system.sensors.items()}
-        return build_sensors(self.system, slots, self.seed, self.n_steps + 1)
+            system, self.controls, self.slots, self.seed, n, skip=self.noise_free)
+        outputs = {sname: np.array([self._numeric_slot(o, f"sensors.{sname}.outputs")
+                                    for o in s.outputs], dtype=np.intp)
+                   for sname, s in system.sensors.items()}
+        inputs = {sname: [self.slots[f"sensornoise.{sname}.{i}"]
+                          for i in range(len(s.noise_inputs))]
+                  for sname, s in system.sensors.items()}
+        measured = list(system.sensors) if system.measured is None else list(system.measured)
+        key = "model.sensors" if self.spec is not None else "measured"
+        for sname in measured:
+            s = system.sensors.get(sname)
+            if s is None:
+                raise ScenarioError(f"{self._where(key)}: unknown sensor {sname!r} "
+                                    f"(sensors: {', '.join(system.sensors)})")
+            if s.sigma and not s.noise_inputs and len(s.sigma) != len(s.outputs):
+                raise ScenarioError(f"{self._where(f'sensors.{sname}.sigma')}: additive noise "
+                                    f"needs one sigma per output ({len(s.outputs)})")
+        #: sampling, loss, noise and assembly of the measurements
+        self.sensors = SensorBank(system.sensors, outputs, inputs, measured, self.seed, n)
 
     def reset(self, seed: int | None = None) -> None:
         """Prepare another run of the same system (``seed`` or the system's): new noise,
@@ -403,7 +280,6 @@ class Master:
             if isinstance(ctl, WaypointHeading):
                 ctl.reset()
         self._sample_sources()
-        self.sensors = self._build_sensors()
         self.bus[:] = 0.0
         self.text.clear()
         self.native.clear()
@@ -422,7 +298,12 @@ class Master:
     def signals(self, names: list[str]) -> np.ndarray:
         return self.bus[[self.slots[n] for n in names]]
 
-    def value(self, name: str):
+    def measurement(self) -> Measurement:
+        """The measurement of the current step (:class:`~uwcosim.master.measurement.SensorBank`:
+        the measured sensors' outputs with their noise, NaN where not received)."""
+        return self.sensors.measure(self.k, self.t, self.bus)
+
+    def value(self, name: str) -> str | int | bool | float:
         """The current value of a signal as its own type (str, int, bool or float)."""
         slot = self.slots[name]
         var = self.out_vars.get(name)
@@ -455,9 +336,9 @@ class Master:
             f = self.system.fmus[name]
             params = dict(f.parameters)
             params.update((start_overrides or {}).get(name, {}))
-            self._set_text(node)
+            node.set_text(self.text)
             node.gather(self.bus)
-            start = {**f.start, **self._input_values(node)}  # driven inputs: their driver
+            start = {**f.start, **node.input_values()}  # driven inputs: their driver
             self.busy = (name, "instantiate", self.t0, time.monotonic())
             try:
                 node.adapter.instantiate(params, start, self.t0, t_stop)
@@ -466,7 +347,7 @@ class Master:
             finally:
                 self.busy = None
             node.adapter.set_inputs(node.inputs, self.t0)
-            self._read(node, self.t0)
+            node.read(self.t0, self.bus, self.native, self.text)
         self._initialized = True
         for node in self.nodes:  # a request to stop in the initial event iteration
             if node.adapter.terminated is not None:
@@ -482,44 +363,10 @@ class Master:
 
     def _load_sources(self, k: int) -> None:
         self.bus[self.source_slots] = self.sources.row(k)
+        self.sensors.load_inputs(k, self.bus)
         for slot, ctl in self.dynamic:
             x, y = self.bus[ctl.pos_slots]
             self.bus[slot] = ctl.value_at(x, y)
-
-    def _input_values(self, node: _Node) -> dict:
-        """The node's driven inputs as native values (for initialization mode)."""
-        out = {}
-        for j, name in enumerate(node.inputs.names):
-            var = node.adapter.variables[name]
-            if node.adapter.varmap.aliases.get(name) is not None:
-                continue  # a role with a unit conversion: set by set_inputs after initialization
-            kind = vartypes.kind(var)
-            x = node.inputs.view[j]
-            out[name] = (node.inputs.text.get(j, "") if kind == "string" else
-                         int(round(x)) if kind == "int" else bool(x) if kind == "bool"
-                         else float(x))
-        return out
-
-    def _set_text(self, node: _Node) -> None:
-        for j, slot in node.str_inputs:
-            node.inputs.text[j] = self.text.get(slot, "")
-
-    def _read(self, node: _Node, t: float) -> None:
-        out = node.adapter.get_outputs(node.outputs, t)
-        num = out if node.numeric is None else out[node.numeric]
-        if not np.all(np.isfinite(num)):
-            names = node.outputs.names if node.numeric is None else \
-                [node.outputs.names[j] for j in node.numeric]
-            bad = [n for n, v in zip(names, num) if not np.isfinite(v)]
-            raise FMUError(f"FMU '{node.adapter.name}' returned a non-finite value for "
-                           f"{', '.join(bad)} at t={t:g}")
-        self.bus[node.out_slots] = out
-        if node.exact_outputs:
-            values = node.outputs.native()
-            for j, slot in node.exact_outputs:
-                self.native[slot] = values[j]
-                if isinstance(values[j], str):
-                    self.text[slot] = values[j]
 
     def step(self) -> None:
         """Advance one base step: ``t_k -> t_{k+1}``, then call the hooks.
@@ -544,7 +391,7 @@ class Master:
                 continue
             a = time.perf_counter()
             if node.str_inputs:
-                self._set_text(node)
+                node.set_text(self.text)
             node.gather(self.bus)
             ad = node.adapter
             # the step is the difference of two grid times (as fmpy's loop does), so the FMU
@@ -558,7 +405,8 @@ class Master:
             stop = ad.terminated
             if stop is not None:
                 t_reached = stop[0]
-            self._read(node, t_next if t_reached is None else t_reached)
+            node.read(t_next if t_reached is None else t_reached, self.bus, self.native,
+                      self.text)
             dt = time.perf_counter() - a
             node.time_s += dt
             fmu_time += dt

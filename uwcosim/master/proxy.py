@@ -29,6 +29,14 @@ import time
 import weakref
 from multiprocessing.connection import Connection
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from fmpy.model_description import ModelVariable
+
+    from uwcosim.master.varmap import VariableMap
 
 import numpy as np
 
@@ -113,10 +121,11 @@ class ProxyAdapter:
     def varmap(self):
         return self.local.varmap
 
-    def variable(self, name: str):
+    def variable(self, name: str) -> ModelVariable:
         return self.local.variable(name)
 
-    def use_map(self, entries, role=None, where="", prefix=""):
+    def use_map(self, entries: dict[str, dict], role: str | None = None, where: str = "",
+                prefix: str = "") -> VariableMap:
         vmap = self.local.use_map(entries, role, where, prefix)
         self._map = (entries, role, where, prefix)
         return vmap
@@ -133,7 +142,7 @@ class ProxyAdapter:
     def feedthrough(self) -> dict[str, set[str]]:
         return self.local.feedthrough()
 
-    def bind(self, names) -> Binding:
+    def bind(self, names: list[str] | tuple[str, ...]) -> Binding:
         typed = self.local.bind(names)  # checks the names and types; buffers unused
         b = Binding.plain(names, typed.kinds, typed.types)
         self._ids[id(b)] = len(self._bindings)
@@ -246,7 +255,8 @@ class ProxyAdapter:
             b.text.update(data[1])
         return b.view
 
-    def do_step(self, t: float, h: float, inputs: Binding, input_fn=None) -> float:
+    def do_step(self, t: float, h: float, inputs: Binding,
+                input_fn: Callable | None = None) -> float:
         """One round trip: inputs in, doStep, and the outputs read after the last step out;
         returns the time reached (see :attr:`FMUAdapter.terminated`)."""
         self._fresh.clear()

@@ -30,6 +30,12 @@ from __future__ import annotations
 import ctypes
 import functools
 import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from uwcosim.master.adapter import FMUAdapter
+    from uwcosim.master.binding import Binding
 
 import numpy as np
 
@@ -49,7 +55,8 @@ def _close(a: float, b: float) -> bool:
     return abs(a - b) <= 1e-12 * max(1.0, abs(a), abs(b))
 
 
-def dop853(deriv, x0: np.ndarray, t: float, h: float, rtol: float, name: str) -> np.ndarray:
+def dop853(deriv: Callable, x0: np.ndarray, t: float, h: float, rtol: float,
+           name: str) -> np.ndarray:
     """scipy's adaptive DOP853 from ``t`` to ``t + h`` (no events)."""
     from scipy.integrate import solve_ivp
 
@@ -108,7 +115,7 @@ def _cvode_class():
 class ModelExchange:
     """Steps one model-exchange FMU instance (see the module docstring)."""
 
-    def __init__(self, adapter, t0: float, t_stop: float) -> None:
+    def __init__(self, adapter: FMUAdapter, t0: float, t_stop: float) -> None:
         self.ad = ad = adapter
         p = "fmi3" if ad.fmi3 else "fmi2"
         raw, self._c = ad._raw, ad._c
@@ -178,7 +185,7 @@ class ModelExchange:
         if self.cvode is not None:
             self.cvode.reset(t)
 
-    def set_discrete(self, b, t: float) -> None:
+    def set_discrete(self, b: Binding, t: float) -> None:
         """Set the discrete inputs of ``b`` that changed, in event mode (one event)."""
         b.to_fmu()
         changed = []
@@ -210,7 +217,7 @@ class ModelExchange:
                            self._t)
         return self.xv.copy()
 
-    def step(self, t: float, h: float, inputs, input_fn) -> float:
+    def step(self, t: float, h: float, inputs: Binding, input_fn: Callable | None) -> float:
         if inputs.groups and inputs.discrete_groups:
             self.set_discrete(inputs, t)
         if self.ad.terminated is not None:

@@ -14,12 +14,18 @@ stream advanced by ``n``), so a run's samples do not depend on the chunk size.
 from __future__ import annotations
 
 import zlib
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Collection
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uwcosim.scenario.schema import BernoulliLoss, ControlSpec, GilbertElliottLoss
+
+if TYPE_CHECKING:
+    from fmpy.model_description import ModelVariable
+
+    from uwcosim.master.system import System
 
 
 def stream(seed: int, purpose: str) -> np.random.Generator:
@@ -35,7 +41,7 @@ class TableControl:
         self.t, self.v = table[:, 0], table[:, 1]
         self.hold = spec.interpolation == "hold"
 
-    def value(self, t):
+    def value(self, t: float | np.ndarray) -> float | np.ndarray:
         if self.hold:
             i = np.searchsorted(self.t, t, side="right") - 1
             return self.v[np.clip(i, 0, len(self.v) - 1)]
@@ -77,7 +83,7 @@ class WaypointHeading:
         self.last = psi
         return psi
 
-    def value(self, t):
+    def value(self, t: float) -> float:
         return self.last if self.last is not None else 0.0
 
 
@@ -96,7 +102,7 @@ class ChunkedTable:
     read in increasing order (a jump back restarts the streams and draws up to that row)."""
 
     def __init__(self, n: int, makers: list[Callable[[], Drawer]], width: int,
-                 dtype=float, chunk: int | None = None) -> None:
+                 dtype: type | np.dtype = float, chunk: int | None = None) -> None:
         self.n, self.makers, self.width, self.dtype = int(n), makers, width, dtype
         self.chunk = int(CHUNK_STEPS if chunk is None else chunk)
         self._restart()
@@ -124,12 +130,12 @@ class ChunkedTable:
         return self.rows[k - self.k0]
 
 
-def noise_drawer(rng: np.random.Generator, psd, h: float) -> Drawer:
+def noise_drawer(rng: np.random.Generator, psd: ArrayLike, h: float) -> Drawer:
     scale = np.sqrt(np.asarray(psd, dtype=float) / h)
     return lambda k0, m: rng.standard_normal((m, scale.size)) * scale
 
 
-def gaussian_drawer(rng: np.random.Generator, sigma) -> Drawer:
+def gaussian_drawer(rng: np.random.Generator, sigma: ArrayLike) -> Drawer:
     sigma = np.asarray(sigma, dtype=float)
     return lambda k0, m: rng.standard_normal((m, sigma.size)) * sigma
 
@@ -164,7 +170,7 @@ def loss_drawer(rng: np.random.Generator, n: int,
     return draw
 
 
-def white_noise(rng: np.random.Generator, n_steps: int, psd, h: float) -> np.ndarray:
+def white_noise(rng: np.random.Generator, n_steps: int, psd: ArrayLike, h: float) -> np.ndarray:
     """Held white-noise samples ``[n_steps, n]`` of variance ``psd / h`` (PSD held over h)."""
     psd = np.asarray(psd, dtype=float)
     return rng.standard_normal((n_steps, psd.size)) * np.sqrt(psd / h)
@@ -182,7 +188,7 @@ def loss_mask(
     return loss_drawer(rng, n, spec)(0, n)
 
 
-def control_problem(c: ControlSpec, var) -> str | None:
+def control_problem(c: ControlSpec, var: ModelVariable) -> str | None:
     """Why control ``c`` cannot drive the FMU input ``var`` (None: it can). A control drives a
     Real input, or an Integer/Boolean one with a held table of whole (Boolean: 0/1) values."""
     from uwcosim.master import vartypes
@@ -215,25 +221,12 @@ class StageInputs:
             view[j] = ctl.value(t)
 
 
-@dataclass
-class Sensor:
-    """A group of FMU outputs measured together, with its sampling and loss."""
-
-    name: str
-    outputs: list[str]
-    slots: np.ndarray
-    period: int
-    mask: ChunkedTable  # column 0: sampled and not lost at step k
-
-    def received_at(self, k: int) -> bool:
-        """Sampled and not lost at step ``k`` (steps are read in increasing order)."""
-        return bool(self.mask.row(k)[0])
-
-
-def sample_sources(system, controls: dict, slots: dict[str, int], seed: int, n: int,
-                   skip=()):
-    """The open-loop sources of ``system`` on the ``n`` grid points, drawn in chunks from the
-    seed's streams: ``(ChunkedTable [n, m], bus slots [m], [(slot, closed-loop control)])``.
+def sample_sources(system: System, controls: dict, slots: dict[str, int], seed: int, n: int,
+                   skip: Collection[str] = ()
+                   ) -> tuple[ChunkedTable, np.ndarray, list[tuple[int, WaypointHeading]]]:
+    """The open-loop controls and noise of ``system`` on the ``n`` grid points, drawn in chunks
+    from the seed's streams (the sensors' noise: :mod:`uwcosim.master.measurement`):
+    ``(ChunkedTable [n, m], bus slots [m], [(slot, closed-loop control)])``.
     Noise sources named in ``skip`` are left out (a truth FMU without their inputs)."""
     t0, h = system.start_time, system.step
     makers, where = [], []
@@ -248,31 +241,7 @@ def sample_sources(system, controls: dict, slots: dict[str, int], seed: int, n: 
         makers.append(lambda nname=nname, nz=nz: noise_drawer(
             stream(seed, f"noise:{nname}"), nz.psd, h))
         where.append([slots[f"noise.{nname}.{i}"] for i in range(len(nz.targets))])
-    for sname, s in system.sensors.items():
-        if s.noise_inputs:
-            makers.append(lambda sname=sname, s=s: gaussian_drawer(
-                stream(seed, f"sensor-noise:{sname}"), s.sigma))
-            where.append([slots[f"sensornoise.{sname}.{i}"] for i in range(len(s.noise_inputs))])
     flat = np.array([s for group in where for s in group], dtype=np.intp)
     dynamic = [(slots[f"controls.{c}"], ctl) for c, ctl in controls.items()
                if not isinstance(ctl, TableControl)]
     return ChunkedTable(n, makers, len(flat)), flat, dynamic
-
-
-def build_sensors(system, slots: dict[str, np.ndarray], seed: int, n: int) -> dict[str, Sensor]:
-    """The sensors of ``system`` with their sampling and (seeded) loss over ``n`` grid points,
-    drawn in chunks as the run goes."""
-    out = {}
-    for sname, s in system.sensors.items():
-
-        def maker(sname=sname, s=s):
-            lost = loss_drawer(stream(seed, f"loss:{sname}"), n, s.loss)
-
-            def draw(k0: int, m: int) -> np.ndarray:
-                k = np.arange(k0, k0 + m)
-                return ((k % s.period == 0) & (k > 0)) & lost(k0, m)
-            return draw
-
-        out[sname] = Sensor(sname, list(s.outputs), slots[sname], s.period,
-                            ChunkedTable(n, [maker], 1, dtype=bool))
-    return out

@@ -28,11 +28,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from uwcosim.scenario.schema import ControlSpec as Control
 from uwcosim.scenario.schema import NoiseSpec as Noise
 from uwcosim.scenario.schema import SensorSpec as Sensor
+
+if TYPE_CHECKING:
+    from uwcosim.scenario.load import LoadedScenario
 
 __all__ = ["FMU", "Control", "Noise", "Sensor", "System", "Termination", "from_scenario"]
 
@@ -73,6 +76,9 @@ class System:
     controls: dict[str, Control] = field(default_factory=dict)
     noise: dict[str, Noise] = field(default_factory=dict)
     sensors: dict[str, Sensor] = field(default_factory=dict)
+    #: the sensors whose outputs form the measurement vector ``z``, in order (None: all;
+    #: :mod:`uwcosim.master.measurement`)
+    measured: list[str] | None = None
     #: what an FMU's request to stop means: ``"stop"`` (status terminated) or ``"error"``
     stop_on_terminate: Literal["stop", "error"] = "stop"
     name: str = "system"
@@ -101,7 +107,7 @@ class Termination:
         return f"FMU '{self.fmu}' requested termination at t={self.time:g}{why}"
 
 
-def from_scenario(loaded) -> System:
+def from_scenario(loaded: LoadedScenario) -> System:
     """The system of a loaded scenario (:class:`~uwcosim.scenario.load.LoadedScenario`)."""
     spec = loaded.spec
     fmus = {
@@ -115,6 +121,7 @@ def from_scenario(loaded) -> System:
         start_time=spec.run.start_time, seed=spec.run.seed,
         connections=[tuple(c) for c in spec.connections], controls=dict(spec.controls),
         noise=dict(spec.noise), sensors=dict(spec.sensors),
+        measured=list(spec.model.sensors) if spec.model is not None else [],
         stop_on_terminate=spec.run.stop_on_terminate, name=spec.name,
         base_dir=loaded.base_dir, where=str(loaded.path),
     )

@@ -25,6 +25,12 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from fmpy.model_description import ModelDescription, ModelVariable
+
+    from uwcosim.master.system import System
 
 from uwcosim.errors import ScenarioError
 from uwcosim.tomlfile import read_toml
@@ -65,7 +71,7 @@ def _canonical(unit: str) -> str:
     return _ALIASES.get(unit, unit)
 
 
-def parse_offset(value, where: str) -> float:
+def parse_offset(value: object, where: str) -> float:
     """A number, or a string ``"[-][k*]pi[/n]"`` such as ``"pi/2"`` or ``"-pi"``."""
     if isinstance(value, bool):
         raise ScenarioError(f"{where}: expected a number or a multiple of pi, got {value!r}")
@@ -80,7 +86,7 @@ def parse_offset(value, where: str) -> float:
     return sign * float(m.group(2) or 1.0) * math.pi / float(m.group(3) or 1.0)
 
 
-def fmu_unit(var) -> str | None:
+def fmu_unit(var: ModelVariable) -> str | None:
     """The unit an FMU variable declares (its own or its declared type's)."""
     unit = getattr(var, "unit", None)
     if not unit and getattr(var, "declaredType", None) is not None:
@@ -88,7 +94,8 @@ def fmu_unit(var) -> str | None:
     return unit or None
 
 
-def unit_conversion(theirs: str, ours: str, md=None) -> tuple[float, float]:
+def unit_conversion(theirs: str, ours: str,
+                    md: ModelDescription | None = None) -> tuple[float, float]:
     """``(f, g)`` with ``ours = f * theirs + g``; ScenarioError-free: raises ValueError."""
     t, o = _canonical(theirs), _canonical(ours)
     if t == o:
@@ -194,7 +201,7 @@ def normalize_entries(raw: dict, where: str, prefix: str = "") -> dict[str, dict
     return out
 
 
-def load_entries(spec_map, base_dir: Path, where: str,
+def load_entries(spec_map: str | dict, base_dir: Path, where: str,
                  prefix: str = "") -> tuple[dict[str, dict], str, str]:
     """The map's entries from a file name (relative to ``base_dir``) or an inline table;
     also the file and key prefix its messages should name."""
@@ -210,7 +217,7 @@ def load_entries(spec_map, base_dir: Path, where: str,
     return normalize_entries(dict(spec_map), where, prefix), where, prefix
 
 
-def resolve_map(entries: dict[str, dict], md, role: str | None = "vehicle",
+def resolve_map(entries: dict[str, dict], md: ModelDescription, role: str | None = "vehicle",
                 where: str = "map", prefix: str = "") -> tuple[VariableMap, list[str]]:
     """Check ``entries`` against the model description ``md``; ``(map, problems)``."""
     if not entries:
@@ -328,7 +335,7 @@ def _absent_noise_inputs(system, adapters: dict, signals: list[str]) -> list[str
     return out
 
 
-def noise_free_sources(system, adapters: dict) -> dict[str, str]:
+def noise_free_sources(system: System, adapters: dict) -> dict[str, str]:
     """``{noise source: FMU}`` for the noise sources none of whose targets their FMU has (a
     third-party vehicle without process-noise inputs): the truth runs without them."""
     out = {}
@@ -339,7 +346,7 @@ def noise_free_sources(system, adapters: dict) -> dict[str, str]:
     return out
 
 
-def noise_free_notes(system, noise_free: dict[str, str], q_psd_given: bool) -> list[str]:
+def noise_free_notes(system: System, noise_free: dict[str, str], q_psd_given: bool) -> list[str]:
     """One line per noise source the truth ran without (see :func:`noise_free_sources`)."""
     q = "model.q_psd" if q_psd_given else "model.q_psd, which defaults to these PSDs"
     return [f"the truth ran noise-free: FMU {fmu!r} has no inputs "
@@ -348,7 +355,7 @@ def noise_free_notes(system, noise_free: dict[str, str], q_psd_given: bool) -> l
             for n, fmu in noise_free.items()]
 
 
-def connection_affine(transform, where: str) -> tuple[float, float]:
+def connection_affine(transform: object, where: str) -> tuple[float, float]:
     """``(factor, offset)`` of a connection's linear transformation: an object with ``factor``
     and ``offset`` attributes (the scenario's), a dict with those keys or a pair."""
     if isinstance(transform, dict):

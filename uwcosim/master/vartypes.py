@@ -25,6 +25,11 @@ from __future__ import annotations
 
 import ctypes
 import math
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import pyarrow as pa
+    from fmpy.model_description import ModelVariable
 
 import numpy as np
 
@@ -58,19 +63,19 @@ FLOAT64 = ("Real", "Float64")
 _RANK = {"bool": 0, "int": 1, "float": 2}
 
 
-def type_info(var, fmi3: bool) -> tuple[str, object, str, str] | None:
+def type_info(var: ModelVariable, fmi3: bool) -> tuple[str, object, str, str] | None:
     """``(kind, ctypes type, fmpy suffix, numpy dtype)`` of ``var`` or None (unsupported)."""
     return (FMI3_TYPES if fmi3 else FMI2_TYPES).get(var.type)
 
 
-def kind(var) -> str:
+def kind(var: ModelVariable) -> str:
     """``"float"``, ``"int"`` (Enumeration too), ``"bool"``, ``"string"`` or
     ``"unsupported"`` (FMI 3 Binary and Clock)."""
     info = FMI3_TYPES.get(var.type) or FMI2_TYPES.get(var.type)
     return info[0] if info else "unsupported"
 
 
-def numpy_dtype(var, fmi3: bool | None = None) -> np.dtype:
+def numpy_dtype(var: ModelVariable, fmi3: bool | None = None) -> np.dtype:
     """The numpy dtype of the variable's values (``object`` for strings)."""
     if fmi3 is None:  # unknown version: Real/Integer are FMI 2, the rest as in FMI 3 (wider)
         fmi3 = var.type not in ("Real", "Integer")
@@ -80,7 +85,7 @@ def numpy_dtype(var, fmi3: bool | None = None) -> np.dtype:
     return np.dtype(info[3])
 
 
-def arrow_type(var, fmi3: bool | None = None):
+def arrow_type(var: ModelVariable, fmi3: bool | None = None) -> pa.DataType:
     """The pyarrow type of a log column for the variable."""
     import pyarrow as pa
 
@@ -88,12 +93,12 @@ def arrow_type(var, fmi3: bool | None = None):
     return pa.string() if dt == np.dtype(object) else pa.from_numpy_dtype(dt)
 
 
-def shape(var) -> tuple[int, ...]:
+def shape(var: ModelVariable) -> tuple[int, ...]:
     """The array shape of an FMI 3 array variable (``()`` for a scalar)."""
     return tuple(getattr(var, "shape", None) or ())
 
 
-def describe(var) -> str:
+def describe(var: ModelVariable) -> str:
     """``Float64``, ``Float64[3]``, ``Enumeration(Mode)``: the type as ``fmu info`` shows it."""
     s = var.type
     if var.type == "Enumeration" and var.declaredType is not None:
@@ -104,7 +109,7 @@ def describe(var) -> str:
     return s
 
 
-def connection_problem(src, dst) -> str | None:
+def connection_problem(src: ModelVariable, dst: ModelVariable) -> str | None:
     """Why the output ``src`` cannot drive the input ``dst`` (None: it can)."""
     ks, kd = kind(src), kind(dst)
     if "unsupported" in (ks, kd):
@@ -184,7 +189,7 @@ def _scalar(var, value, where: str):
                         f"cannot set")
 
 
-def coerce(var, value, where: str):
+def coerce(var: ModelVariable, value: object, where: str) -> object:
     """``value`` (from TOML or Python) checked against ``var``'s declared type and converted to
     the native Python value (a list for an FMI 3 array); one-line :class:`ScenarioError`
     naming the variable and the expected type otherwise."""
@@ -213,6 +218,6 @@ def _flatten(value) -> list:
     return out
 
 
-def is_continuous_input(var) -> bool:
+def is_continuous_input(var: ModelVariable) -> bool:
     """Model exchange: can the input be set in continuous-time mode (a continuous float)?"""
     return kind(var) == "float" and (var.variability or "continuous") == "continuous"

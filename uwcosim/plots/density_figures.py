@@ -10,6 +10,11 @@ each figure the panels share their extent and their colour scale, with one color
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from uwcosim.estimation import EstimatorBank
+    from uwcosim.master.master import Master
 
 import numpy as np
 
@@ -19,13 +24,14 @@ N_POINTS = 81
 class DensitySnapshots:
     """A master hook that keeps ``density_grid()`` of the estimators that have one, at times."""
 
-    def __init__(self, bank, times: list[float], truth_xy: tuple[int, int]) -> None:
+    def __init__(self, bank: EstimatorBank, times: list[float],
+                 truth_xy: tuple[int, int]) -> None:
         self.bank = bank
         self.times = sorted(times)
         self.truth_xy = truth_xy
         self.snaps: list[dict] = []
 
-    def __call__(self, master) -> None:
+    def __call__(self, master: Master) -> None:
         if not self.times or master.t + 1e-9 < self.times[0]:
             return
         while self.times and master.t + 1e-9 >= self.times[0]:

@@ -16,6 +16,10 @@ import base64
 import html
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from uwcosim.report.runfiles import RunFiles
 
 import numpy as np
 
@@ -157,7 +161,7 @@ def _results_rows(summary: dict) -> list[list]:
     return rows
 
 
-def run_html(run, figures: list[Path], path: Path) -> Path:
+def run_html(run: RunFiles, figures: list[Path], path: Path) -> Path:
     """Write the self-contained HTML report of ``run`` (a :class:`RunFiles`) to ``path``."""
     from uwcosim.report.reproduce import reproduce_command
 

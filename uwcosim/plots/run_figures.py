@@ -9,6 +9,18 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    import numpy as np
+
+    from uwcosim.models.bathymetry import Bathymetry
+
+    #: log columns by name, and lists of names
+    Columns = dict[str, np.ndarray]
+    Names = Sequence[str]
 
 import matplotlib
 
@@ -53,7 +65,8 @@ def _inset_corner(tx, ty, lims) -> tuple[float, float]:
     return corners[int(np.argmin(hidden))]
 
 
-def trajectory_figure(cols, truth_names, est_names, states, bathy, path: Path) -> Path:
+def trajectory_figure(cols: Columns, truth_names: Names, est_names: Names, states: Names,
+                      bathy: Bathymetry | None, path: Path) -> Path:
     """Track and estimates over the map, a colorbar the height of the axes and an inset that
     zooms on the end of the run (at map scale the estimates hide under the truth)."""
     from mpl_toolkits.axes_grid1 import make_axes_locatable
@@ -115,7 +128,8 @@ def trajectory_figure(cols, truth_names, est_names, states, bathy, path: Path) -
     return path
 
 
-def error_figure(cols, truth_names, est_names, states, path: Path) -> Path:
+def error_figure(cols: Columns, truth_names: Names, est_names: Names, states: Names,
+                 path: Path) -> Path:
     """Position error (x solid, y dashed) and their 3-sigma bounds (x: hatched band, y: plain
     band with dotted edges), one legend, the same y-scale in every panel."""
     t = cols["time"]
@@ -153,7 +167,8 @@ def error_figure(cols, truth_names, est_names, states, path: Path) -> Path:
     return path
 
 
-def error_norm_figure(cols, truth_names, est_names, states, path: Path) -> Path:
+def error_norm_figure(cols: Columns, truth_names: Names, est_names: Names, states: Names,
+                      path: Path) -> Path:
     """The position error norm ``|p_est(t_k) - p(t_k)|`` of this one run, per estimator.
 
     For one run this is what seed 001 eq. (43) calls RMSE(k) (an RMSE over runs); the figure

@@ -89,14 +89,19 @@ def signal_figures(log_path: str | Path, out_dir: str | Path,
     return paths, text
 
 
-def write_signal_report(run_dir: str | Path) -> Path:
-    """``report.md`` of a run without estimators: status, timing and the signal figures."""
+def write_signal_report(run_dir: str | Path, out: str | Path | None = None,
+                        summary: dict | None = None) -> Path:
+    """``report.md`` of a run without estimators: status, timing and the signal figures, into
+    ``out`` (default: the run directory). ``summary``: default the run's ``summary.json``."""
     run_dir = Path(run_dir)
+    out = Path(out) if out is not None else run_dir
+    out.mkdir(parents=True, exist_ok=True)
     log_path = run_dir / "log.parquet"
-    figures, text = signal_figures(log_path, run_dir)
+    figures, text = signal_figures(log_path, out)
     _, meta = read_log(log_path)
     summary_path = run_dir / "summary.json"
-    s = json.loads(summary_path.read_text()) if summary_path.is_file() else {}
+    s = summary if summary is not None else \
+        json.loads(summary_path.read_text()) if summary_path.is_file() else {}
     seed = s.get("seed", meta.get("seed", "N"))
     lines = [
         f"# Run report: {s.get('scenario', run_dir.name)}\n",
@@ -122,6 +127,6 @@ def write_signal_report(run_dir: str | Path) -> Path:
     if text:
         lines.append("String signals (in the log, not drawn): "
                      + ", ".join(f"`{n}`" for n in text) + "\n")
-    path = run_dir / "report.md"
+    path = out / "report.md"
     path.write_text("\n".join(lines))
     return path

@@ -1,8 +1,10 @@
 """The report stage of one run: figures and ``report.md`` from the run directory's files.
 
-``uwcosim run`` calls :func:`report_run` at the end of a run; ``uwcosim report RUN`` calls it on
-any existing run directory (also one interrupted, or written by an older version whose log
-carries the metadata). Nothing but the files of the run directory is read.
+``uwcosim run`` calls :func:`report_run` at the end of a run (a run without estimators gets the
+report of its logged signals, :func:`uwcosim.plots.signals.write_signal_report`);
+``uwcosim report RUN`` calls it on any existing run directory (also one interrupted, or written
+by an older version whose log carries the metadata). Nothing but the files of the run
+directory is read.
 """
 
 from __future__ import annotations
@@ -66,11 +68,17 @@ def markdown_report(run: RunFiles, figures: list[Path]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def report_run(run_dir: str | Path, out: str | Path | None = None, html: bool = False) -> Path:
+def report_run(run_dir: str | Path, out: str | Path | None = None, html: bool = False,
+               summary: dict | None = None) -> Path:
     """Figures and ``report.md`` (and ``report.html`` with ``html``) of a run directory into
-    ``out`` (default: the run directory). Returns the report's path."""
-    run = load_run(run_dir)
+    ``out`` (default: the run directory). Returns the report's path. ``summary``: the run's
+    summary (default: its ``summary.json``)."""
+    run = load_run(run_dir, summary)
     out = Path(out) if out is not None else run.run_dir
+    if not run.estimators and not html:  # a plain co-simulation run: its signals
+        from uwcosim.plots.signals import write_signal_report
+
+        return write_signal_report(run.run_dir, out, run.summary)
     out.mkdir(parents=True, exist_ok=True)
     figures = write_figures(run, out)
     path = out / "report.md"

@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import os
 import threading
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +35,7 @@ from uwcosim.errors import UwcosimError
 EXACT = (np.dtype(object), np.dtype(np.int64), np.dtype(np.uint64))
 
 
-def arrow_type(dtype) -> pa.DataType:
+def arrow_type(dtype: np.typing.DTypeLike) -> pa.DataType:
     dtype = np.dtype(dtype)
     return pa.string() if dtype == np.dtype(object) else pa.from_numpy_dtype(dtype)
 
@@ -77,7 +78,7 @@ class RunLogger:
             raise UwcosimError(f"{self.path}: cannot write the run log ({exc.strerror or exc})"
                                ) from None
 
-    def append(self, values: np.ndarray, flags: np.ndarray, exact=()) -> None:
+    def append(self, values: np.ndarray, flags: np.ndarray, exact: Sequence = ()) -> None:
         """Append one row: ``values`` in ``columns`` order (time first), ``flags`` booleans,
         ``exact`` the values of :attr:`exact_columns`."""
         with self._lock:

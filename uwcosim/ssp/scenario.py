@@ -16,6 +16,10 @@ import shutil
 import tempfile
 import weakref
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from uwcosim.scenario.load import LoadedScenario
 
 from pydantic import ValidationError
 
@@ -124,7 +128,7 @@ def equivalent_toml(system: FlatSystem, ssp_name: str, sha256: str) -> str:
             f"the archive\n" + tomli_w.dumps(data))
 
 
-def load_ssp(path: Path, overrides: list[str] | tuple[str, ...] = ()):
+def load_ssp(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> LoadedScenario:
     """``uwcosim run system.ssp``: the SSP as a plain co-simulation scenario."""
     from uwcosim.scenario.load import (
         LoadedScenario,

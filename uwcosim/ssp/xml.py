@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from lxml.etree import _Element as Element
+
 SSP1 = "http://ssp-standard.org/SSP1/"
 NS = {k: SSP1 + v for k, v in (("ssd", "SystemStructureDescription"),
                                ("ssc", "SystemStructureCommon"),
@@ -16,7 +21,7 @@ SI_EXPONENTS = {"m": {"m": 1}, "rad": {"rad": 1}, "s": {"s": 1}, "m/s": {"m": 1,
        "m/s2": {"m": 1, "s": -2}}
 
 
-def unsupported_element(root) -> str | None:
+def unsupported_element(root: Element) -> str | None:
     """The one-line message for the first element we do not implement, or None."""
     checks = (
         ("ssd:SignalDictionaries/ssd:SignalDictionary", "signal dictionaries"),
@@ -49,7 +54,7 @@ def as_float(text: str | None) -> float | None:
     return None if text is None else float(text)
 
 
-def parameter_value(p):
+def parameter_value(p: object) -> float | int | bool | str:
     if p.type == "Real":
         return float(p.value)
     if p.type == "Integer":
@@ -70,7 +75,7 @@ def _unsupported(el, what: str, system: str | None) -> str:
             f"(see docs/ssp.md for the supported subset)")
 
 
-def step_size(root) -> float | None:
+def step_size(root: Element) -> float | None:
     """The communication step: our annotation on the DefaultExperiment, or a
     ``FixedStepMaster stepSize`` in any annotation (as OMSimulator writes it)."""
     found = None

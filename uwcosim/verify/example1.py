@@ -119,7 +119,7 @@ class Example1Result:
 
 
 def run_example1(
-    out_dir: Path | None = None, Ks=(4, 8, 16, 32), echo: bool = True
+    out_dir: Path | None = None, Ks: tuple[int, ...] = (4, 8, 16, 32), echo: bool = True
 ) -> Example1Result:
     """Solve Example 1 for each ``K``, print the error table, draw Figures 2-4 into ``out_dir``."""
     Ks = tuple(int(k) for k in Ks)

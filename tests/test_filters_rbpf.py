@@ -135,3 +135,23 @@ def test_rpf_bandwidth_and_jitter(terrain_model):
     with pytest.raises(ValueError, match="shrink needs a bandwidth below 1"):
         RegularizedPF(terrain_model, START, np.diag(STD0**2), n_particles=10, shrink=True,
                       bandwidth_scale=10.0)
+
+
+def test_rbpf_partial_measurements(terrain_model):
+    """Depth only (DVL lost), DVL only, nothing: the linear block is left alone without DVL."""
+    est = RaoBlackwellizedPF(terrain_model, START, np.diag(STD0**2), n_particles=300, seed=3)
+    z = terrain_model.h(START)
+    est.predict(controls(0), 1.0)
+    Pk = est.Pk.copy()
+    means = est.particles[2:].copy()
+    est.update(z, np.array([False, False, True]))
+    assert est.diagnostics["nis_dof"] == 1.0 and est.diagnostics["pd_repairs"] == 0.0
+    np.testing.assert_array_equal(est.Pk, Pk)
+    if not est.diagnostics["resampled"]:
+        np.testing.assert_array_equal(est.particles[2:], means)
+    est.predict(controls(1), 1.0)
+    est.update(z, np.array([True, True, False]))
+    assert est.diagnostics["nis_dof"] == 2.0 and np.trace(est.Pk) < np.trace(Pk)
+    est.predict(controls(2), 1.0)
+    est.update(None)
+    assert np.isfinite(est.P).all()

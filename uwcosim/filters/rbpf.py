@@ -310,7 +310,8 @@ class RaoBlackwellizedPF(FilterBase):
             Zt, z = Zt[idx], z[idx]
         E = Zt - z[:, None]  # E_i = zhat_i - z
         R, kpos, Hk, kk = self._blocks(idx)
-        m, nk = idx.size, len(self.ik)
+        m = idx.size
+        nk = len(self.ik) if kpos.size else 0  # no Kalman row: the linear block stays as is
         M = np.zeros((m + nk, m + nk))
         M[:m, :m] = R
         if kpos.size:

@@ -199,6 +199,7 @@ class RaoBlackwellizedPF(FilterBase):
         self._Paug = np.zeros((m.nx, m.nx))
         self._eye_k = np.eye(len(ik))
         self._block_cache: dict[bytes, tuple] = {}
+        self._D = np.empty_like(self.particles)  # centred particles, for P
 
     # estimate -----------------------------------------------------------------------------
     @property
@@ -215,7 +216,7 @@ class RaoBlackwellizedPF(FilterBase):
     @property
     def P(self) -> np.ndarray:
         if getattr(self, "_P_stale", False):
-            D = self.particles - self.x[:, None]
+            D = np.subtract(self.particles, self.x[:, None], out=self._D)
             P = (D * self._w) @ D.T
             P = symmetrize(P)
             if self.ik:
@@ -282,16 +283,20 @@ class RaoBlackwellizedPF(FilterBase):
         self._moved()
 
     def _blocks(self, idx: np.ndarray):
-        """Per set of available rows: ``(R block, positions of the Kalman rows, H_k, index of
-        their block)``."""
+        """Per set of available rows: ``(template of M with R in place, positions of the Kalman
+        rows (a slice when contiguous), H_k, index of their block)``."""
         key = idx.tobytes()
         out = self._block_cache.get(key)
         if out is None:
             kal = self._kalman_row[idx]
             kpos = np.flatnonzero(kal)
             rows = [self.rows_k.index(int(r)) for r in idx[kal]]
+            m = idx.size
+            nk = len(self.ik) if kpos.size else 0  # no Kalman row: the linear block stays
+            M0 = np.zeros((m + nk, m + nk))
+            M0[:m, :m] = self.model.R[np.ix_(idx, idx)]
             kk = block_pair(list(kpos), list(kpos))
-            out = (self.model.R[np.ix_(idx, idx)], kpos, self._Hk[rows], kk)
+            out = (M0, block_slice(list(kpos)), self._Hk[rows], kk, kpos.size > 0)
             self._block_cache[key] = out
         return out
 
@@ -309,12 +314,10 @@ class RaoBlackwellizedPF(FilterBase):
         if idx.size < Zt.shape[0]:
             Zt, z = Zt[idx], z[idx]
         E = Zt - z[:, None]  # E_i = zhat_i - z
-        R, kpos, Hk, kk = self._blocks(idx)
+        M0, kpos, Hk, kk, kalman = self._blocks(idx)
         m = idx.size
-        nk = len(self.ik) if kpos.size else 0  # no Kalman row: the linear block stays as is
-        M = np.zeros((m + nk, m + nk))
-        M[:m, :m] = R
-        if kpos.size:
+        M = M0.copy()
+        if kalman:
             HP = Hk @ self.Pk
             M[kpos, m:] = HP
             M[m:, kpos] = HP.T
@@ -324,7 +327,7 @@ class RaoBlackwellizedPF(FilterBase):
         if info != 0:  # repair the predictive block, then factor again
             C, _ = repair_pd(M[:m, :m], self.diagnostics)
             M[:m, :m] = C
-            M = symmetrize(M) + 1e-12 * np.mean(np.diag(M)) * np.eye(m + nk)
+            M = symmetrize(M) + 1e-12 * np.mean(np.diag(M)) * np.eye(M.shape[0])
             L, info = _potrf(M, lower=1, clean=1)
             if info != 0:
                 raise FilterDivergence("rbpf: measurement update covariance is not definite")
@@ -345,7 +348,7 @@ class RaoBlackwellizedPF(FilterBase):
         if info != 0:  # pragma: no cover - L11 is a Cholesky factor
             raise FilterDivergence("rbpf: singular measurement covariance")
         W = Li @ E  # whitened residuals
-        if kpos.size:  # every particle's Kalman correction, common gain
+        if kalman:  # every particle's Kalman correction, common gain
             self.particles[self._sk] -= L[m:, :m] @ W
             L22 = L[m:, m:]
             self.Pk = L22 @ L22.T

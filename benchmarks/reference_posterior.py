@@ -28,7 +28,7 @@ filters; the Hellinger distance to the reference is reported (0 = identical, 1 =
 the reference: what a perfect 1000-particle filter would score with this estimator.
 
     .venv/bin/python benchmarks/reference_posterior.py [--runs 3] [--duration 1000]
-        [--times 10 100 300 1000] [--reference-particles 100000]
+        [--times 10 100 300 1000] [--reference-particles 100000] [--fine-grid 201]
 """
 
 from __future__ import annotations
@@ -65,6 +65,13 @@ FILTERS = {
     "PFM-PSI K=10": ("pfm_psi", {"K": 10}),
     "point mass 101": ("point_mass", {}),
 }
+
+
+def filters(args) -> dict:
+    out = dict(FILTERS)
+    if args.fine_grid:
+        out[f"point mass {args.fine_grid}"] = ("point_mass", {"n_points": args.fine_grid})
+    return out
 
 
 def scenario():
@@ -120,7 +127,7 @@ def one_run(model, controls, start, args, seed: int) -> dict:
                                                    seed=seed + 20_000),
         "PF-1e5": ESTIMATORS.get("pf")(model, x0, P0, n_particles=n_ref, seed=seed + 30_000),
     }
-    for label, (name, kw) in FILTERS.items():
+    for label, (name, kw) in filters(args).items():
         kw = dict(kw, seed=seed) if name in ("pf", "rbpf", "rpf") else kw
         ests[label] = ESTIMATORS.get(name)(model, x0, P0, **kw)
     out: dict = {}
@@ -148,11 +155,13 @@ def main() -> None:
     ap.add_argument("--times", type=int, nargs="+", default=[10, 100, 300, 1000])
     ap.add_argument("--reference-particles", type=int, default=100_000)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--fine-grid", type=int, default=0,
+                    help="also run a point-mass filter with this many points per axis")
     args = ap.parse_args()
     model, controls, start = scenario()
     t0 = time.perf_counter()
     rows = [one_run(model, controls, start, args, args.seed + i) for i in range(args.runs)]
-    labels = ["RBPF-1e5 replica", "PF-1e5", *FILTERS, "floor-1000"]
+    labels = ["RBPF-1e5 replica", "PF-1e5", *filters(args), "floor-1000"]
     print(f"Hellinger distance to the RBPF-{args.reference_particles} reference, mean (max) over "
           f"{args.runs} runs; {time.perf_counter() - t0:.0f} s")
     print("| t (s) | " + " | ".join(labels) + " | ref sd x / y (m) |")

@@ -63,8 +63,9 @@ class RegularizedPF(ParticleFilter):
         rng: np.random.Generator | None = None,
         measurements: list[str] | None = None,
     ) -> None:
-        super().__init__(model, x0, P0, n_particles, resampling, ess_threshold, 0.0, seed, rng,
-                         measurements)
+        super().__init__(model, x0, P0, n_particles=n_particles, resampling=resampling,
+                         ess_threshold=ess_threshold, roughening=0.0, seed=seed, rng=rng,
+                         measurements=measurements)
         if not float(bandwidth_scale) >= 0.0:
             raise ValueError(f"bandwidth_scale must be >= 0, got {bandwidth_scale}")
         self.bandwidth = float(bandwidth_scale) * optimal_bandwidth(self.n, self.model.nx)

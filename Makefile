@@ -40,6 +40,7 @@ bench: fmus
 	$(PY) benchmarks/bench_master.py
 	$(PY) benchmarks/bench_filters.py
 	$(PY) benchmarks/bench_projection.py
+	$(PY) benchmarks/bench_rbpf.py
 
 clean:
 	rm -rf runs fmus/*.fmu fmus/.build build *.egg-info

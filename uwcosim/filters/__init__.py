@@ -5,6 +5,8 @@ from uwcosim.filters import (  # noqa: F401  (importing registers the estimators
     particle,
     point_mass,
     projection,
+    rbpf,
+    regularized,
     settings,
     sigma_point,
     variational,

@@ -13,7 +13,10 @@ finite.
 - ``extrapolate``: seed 001 eq. (28): a missing component is replaced by the three-point
   Lagrange polynomial through the last three *received* values of that component, at their
   actual times, evaluated at ``t``. With fewer than three received values it stays missing.
-  Extrapolated values never enter the history.
+  Extrapolated values never enter the history. ``mode="runs"`` (the policy's default)
+  extrapolates every missing value, also inside a run of consecutive losses (our
+  generalization); ``mode="isolated"`` only a single loss right after three consecutive
+  receipts (seed 001's Assumption 1), other losses stay missing.
 """
 
 from __future__ import annotations
@@ -27,17 +30,29 @@ from uwcosim.registry import Registry
 POLICIES: Registry[type] = Registry("lost-measurement policy")
 
 
-def lagrange_extrapolate(ts, ys, t: float) -> np.ndarray:
-    """Seed 001 eq. (28): ``L_2(t) = sum_j Y_j l_j(t)`` through three points ``(ts[j], ys[j])``.
-
-    ``l_j(t) = prod_{i != j} (t - t_i) / (t_j - t_i)``; ``ys`` may hold vectors (rows).
-    """
+def lagrange_weights(ts, t: float) -> tuple[float, float, float]:
+    """The weights ``l_j(t) = prod_{i != j} (t - t_i) / (t_j - t_i)`` of seed 001 eq. (28)."""
     t0, t1, t2 = (float(v) for v in ts)
     l0 = (t - t1) * (t - t2) / ((t0 - t1) * (t0 - t2))
     l1 = (t - t0) * (t - t2) / ((t1 - t0) * (t1 - t2))
     l2 = (t - t0) * (t - t1) / ((t2 - t0) * (t2 - t1))
+    return l0, l1, l2
+
+
+def lagrange_extrapolate(ts, ys, t: float) -> np.ndarray:
+    """Seed 001 eq. (28): ``L_2(t) = sum_j Y_j l_j(t)`` through three points ``(ts[j], ys[j])``.
+
+    ``ys`` may hold vectors (rows).
+    """
+    l0, l1, l2 = lagrange_weights(ts, t)
     ys = np.asarray(ys, dtype=float)
     return l0 * ys[0] + l1 * ys[1] + l2 * ys[2]
+
+
+def noise_gain(ts, t: float) -> float:
+    """``sum_j l_j(t)^2``: the variance of an extrapolated value over that of one measurement
+    (independent equal noises); 1 + 9 + 9 = 19 for one step after three equally spaced ones."""
+    return float(sum(v * v for v in lagrange_weights(ts, t)))
 
 
 def missing_mask(z, mask, nz: int) -> np.ndarray:
@@ -83,27 +98,47 @@ class Zero(Policy):
 @POLICIES.register("extrapolate")
 class Extrapolate(Policy):
     """Seed 001 eq. (28): missing components extrapolated by the three-point Lagrange
-    polynomial through the last three received values (per component, at their times)."""
+    polynomial through the last three received values (per component, at their times).
 
-    def __init__(self, nz: int) -> None:
+    ``mode``: ``"runs"`` (every missing value once three were received) or ``"isolated"``
+    (only a loss right after three consecutive receipts). After a call, ``extrapolated`` counts
+    the filled components and ``gain[i]`` is the noise gain :func:`noise_gain` of component
+    ``i`` (1 where it was received or left missing).
+    """
+
+    MODES = ("runs", "isolated")
+
+    def __init__(self, nz: int, mode: str = "runs") -> None:
         super().__init__(nz)
+        if mode not in self.MODES:
+            raise ValueError(f"extrapolate must be one of {', '.join(self.MODES)}, got {mode!r}")
+        self.mode = mode
         self.history: list[deque] = [deque(maxlen=3) for _ in range(self.nz)]
+        self.streak = np.zeros(self.nz, dtype=int)  # consecutive receipts before now
         self.extrapolated = 0  # components filled by the last call
+        self.gain = np.ones(self.nz)
 
     def __call__(self, t: float, z, mask=None):
         t = float(t)
         present = missing_mask(z, mask, self.nz)
         z2 = np.full(self.nz, np.nan) if z is None else np.asarray(z, dtype=float).copy()
         out = present.copy()
+        self.gain = np.ones(self.nz)
+        isolated = self.mode == "isolated"
         for i in range(self.nz):
             hist = self.history[i]
             if present[i]:
                 if hist and hist[-1][0] == t:  # the same instant again: keep the latest value
                     hist.pop()
+                else:
+                    self.streak[i] += 1
                 hist.append((t, z2[i]))
-            elif len(hist) == 3:
-                ts, ys = zip(*hist)
-                z2[i] = lagrange_extrapolate(ts, ys, t)
-                out[i] = True
+            else:
+                if len(hist) == 3 and (not isolated or self.streak[i] >= 3):
+                    ts, ys = zip(*hist)
+                    z2[i] = lagrange_extrapolate(ts, ys, t)
+                    self.gain[i] = noise_gain(ts, t)
+                    out[i] = True
+                self.streak[i] = 0
         self.extrapolated = int(np.count_nonzero(out & ~present))
         return z2, out

@@ -143,7 +143,7 @@ class ParticleSettings(FilterSettings):
     needs_rng: ClassVar[bool] = True
 
 
-@settings_for("vbakf", "qivbf")
+@settings_for("vbakf")
 class VariationalSettings(FilterSettings):
     tau: StrictFloat = Field(3.0, ge=0, description="tuning of the prior dof of P_{k|k-1}")
     rho: StrictFloat = Field(1.0 - math.exp(-4.0), gt=0, le=1,
@@ -154,6 +154,43 @@ class VariationalSettings(FilterSettings):
     u0: StrictFloat | None = Field(None, description="initial dof of R (default m + 2; must "
                                    "exceed m + 1)")
     measurements: Measurements = Field(None, description=_MEAS)
+
+
+@settings_for("qivbf")
+class QIVBFSettings(VariationalSettings):
+    extrapolate: Literal["runs", "isolated"] = Field(
+        "runs", description="extrapolate every lost component with three earlier receipts "
+        "(runs), or only a single loss after three receipts (isolated, seed 001 Assumption 1)")
+    inflate_r: StrictBool = Field(False, description="inflate R of an extrapolated component "
+                                  "by the Lagrange noise gain (our correction, not the paper's)")
+
+
+@settings_for("rbpf")
+class RBPFSettings(FilterSettings):
+    n_particles: StrictInt = Field(1000, ge=2, description="number of particles")
+    resampling: Literal["systematic", "stratified", "residual", "multinomial"] = Field(
+        "systematic", description="resampling scheme")
+    ess_threshold: StrictFloat = Field(0.5, ge=0, le=1, description="resample when the "
+                                       "effective sample size falls below this fraction of N")
+    linear_states: list[StrictStr] | None = Field(
+        None, description="the Kalman (marginalized) states (default: from the model)")
+    measurements: Measurements = Field(None, description=_MEAS)
+    needs_rng: ClassVar[bool] = True
+
+
+@settings_for("rpf")
+class RegularizedSettings(FilterSettings):
+    n_particles: StrictInt = Field(1000, ge=2, description="number of particles")
+    resampling: Literal["systematic", "stratified", "residual", "multinomial"] = Field(
+        "systematic", description="resampling scheme")
+    ess_threshold: StrictFloat = Field(0.5, ge=0, le=1, description="resample when the "
+                                       "effective sample size falls below this fraction of N")
+    bandwidth_scale: StrictFloat = Field(1.0, ge=0, description="times the optimal Gaussian "
+                                         "kernel bandwidth")
+    shrink: StrictBool = Field(False, description="Liu-West shrinkage (keeps the cloud's mean "
+                               "and covariance)")
+    measurements: Measurements = Field(None, description=_MEAS)
+    needs_rng: ClassVar[bool] = True
 
 
 @settings_for("point_mass")

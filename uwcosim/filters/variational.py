@@ -33,6 +33,15 @@ text: the Table 1 time update ``P = (X_{k|k-1} - X_{k-1|k-1})(...)' + Q`` is rea
 ``F P F' + Q``; eq. (40) ``X(l+1) = X(l) + K (Y - H X(l))`` would apply the measurement once per
 iteration, Huang's ``x(i+1) = x + K (z - H x)`` from the prior is used; eqs. (37)-(38) are used as
 printed (``E = M / (m - n - 1)``, as in Huang).
+
+QIVBF settings beyond the paper: ``extrapolate`` (``"runs"``, default: every lost value once
+three were received, our generalization to consecutive losses; ``"isolated"``: only a single
+loss after three receipts, seed 001's Assumption 1, other losses are skipped) and
+``inflate_r`` (false; **our own correction, not in seed 001**: an extrapolated value
+``sum_j l_j Y_j`` carries the noise ``sum_j l_j v_j`` of variance ``g r`` with the Lagrange
+noise gain ``g = sum_j l_j^2`` (19 for one step after three equally spaced receipts), so its
+row of the update is divided by ``sqrt(g)``: the VB update then sees it with ``R`` scaled by
+``g`` while the inverse-Wishart model of ``R`` keeps learning from unit-gain rows).
 """
 
 from __future__ import annotations
@@ -171,11 +180,15 @@ class VariationalBayesAKF(FilterBase):
             return
         self._vb(np.asarray(z, dtype=float), idx)
 
-    def _vb(self, z: np.ndarray, idx: np.ndarray) -> None:
+    def _vb(self, z: np.ndarray, idx: np.ndarray, gain: np.ndarray | None = None) -> None:
         m, p = self.model.nz, idx.size
         full = p == m
         H = self.model.H(self.x)[idx]
         y = z[idx] - self.model.h(self.x)[idx]  # y = z - h(x)
+        if gain is not None:  # rows of extrapolated values: noise variance g r (see above)
+            scale = 1.0 / np.sqrt(gain[idx])
+            H = H * scale[:, None]
+            y = y * scale
         u_s = self.u - (m - p)  # marginal IW of the available block
         U_s = self.U if full else self.U[np.ix_(idx, idx)]
         res = vb_update(self.x, self.P, y, H, u_s, U_s, self.tau, self.iterations, self.tol,
@@ -200,15 +213,18 @@ class QuadraticInterpolationVBF(VariationalBayesAKF):
     """QIVBF (seed 001): eq. (28) extrapolation of lost components, then the VB-AKF update.
 
     Uses ``est.t`` (set by the driver before ``update``) as the measurement time. Components
-    with fewer than three received values so far are skipped. Same settings as ``vbakf``;
-    ``diagnostics['extrapolated']`` counts the filled components.
+    with fewer than three received values so far are skipped. Settings of ``vbakf`` plus
+    ``extrapolate`` (``"runs"`` or ``"isolated"``) and ``inflate_r`` (false; our correction,
+    see the module docstring); ``diagnostics['extrapolated']`` counts the filled components.
     """
 
     def __init__(self, model, x0, P0, tau: float = 3.0, rho: float = 1.0 - math.exp(-4.0),
                  iterations: int = 10, tol: float = 1e-6, u0: float | None = None,
-                 measurements: list[str] | None = None) -> None:
+                 measurements: list[str] | None = None, extrapolate: str = "runs",
+                 inflate_r: bool = False) -> None:
         super().__init__(model, x0, P0, tau, rho, iterations, tol, u0, measurements)
-        self.interpolator = Extrapolate(model.nz)
+        self.interpolator = Extrapolate(model.nz, extrapolate)
+        self.inflate_r = bool(inflate_r)
 
     def update(self, z, mask=None) -> None:
         mask = self._use if mask is None else np.asarray(mask, dtype=bool) & self._use
@@ -217,4 +233,6 @@ class QuadraticInterpolationVBF(VariationalBayesAKF):
         self.diagnostics["extrapolated"] = float(self.interpolator.extrapolated)
         if idx is None:
             return
-        self._vb(np.asarray(z, dtype=float), idx)
+        filled = self.inflate_r and self.interpolator.extrapolated
+        gain = self.interpolator.gain if filled else None
+        self._vb(np.asarray(z, dtype=float), idx, gain)

@@ -1,0 +1,393 @@
+"""Marginalized (Rao-Blackwellized) particle filter (``rbpf``).
+
+Schön, Gustafsson & Nordlund, "Marginalized particle filters for mixed linear/nonlinear
+state-space models", IEEE TSP 53(7), 2005; Gustafsson et al., "Particle filters for
+positioning, navigation and tracking", IEEE TSP 50(2), 2002 (terrain navigation). The state is
+split into *particle* states ``p`` and *linear* states ``k``: by default the states measured by
+affine measurement rows (the DVL's velocities, seed 000 eq. 55) and not by a nonlinear one (the
+terrain depth's position), for a model of the form::
+
+    p' = f_p(p) + A k + n_p,      k' = F_k k + b_k + n_k,      [n_p; n_k] ~ N(0, Q)
+    z  = [H k + c; h(p)] + e,     e ~ N(0, R)  (R block-diagonal between the two groups)
+
+with ``A``, ``F_k``, ``H`` and ``Q`` independent of the state (they may depend on the control
+and the step). Each particle carries ``p_i`` and the mean ``m_i`` of a Kalman filter on ``k``;
+since no matrix depends on ``p``, the Kalman covariance ``P`` is the same for every particle and
+is propagated once per step (the per-particle filters are vectorized over particles).
+
+One step, exact for this model (the joint Gaussian of ``(p', k')`` given ``(p_i, m_i, P)``):
+
+1. ``p'_i ~ N(f_p(p_i) + A m_i, S_pp)`` with ``S_pp = A P A' + Q_pp`` (the marginal prediction
+   of the particle states: the bootstrap proposal of the marginalized filter);
+2. ``k'`` conditioned on the drawn ``p'_i`` (Schön et al.'s "measurement update with the
+   nonlinear dynamics"): ``m'_i = F_k m_i + b_k + S_kp S_pp^-1 (p'_i - f_p(p_i) - A m_i)``,
+   ``P' = S_kk - S_kp S_pp^-1 S_pk``, ``S_kp = F_k P A' + Q_kp``, ``S_kk = F_k P F_k' + Q_kk``;
+3. weights ``w_i *= N(z_k; H m'_i + c, H P' H' + R_k) N(z_p; h(p'_i), R_p)``;
+4. Kalman update of every ``m'_i`` with the common gain ``K = P' H' (H P' H' + R_k)^-1``;
+5. resampling (ESS-triggered) of ``(p_i, m_i)`` together.
+
+The estimate is the mixture's mean and covariance: ``x = sum w_i [p_i; m_i]``,
+``P = sum w_i (X_i - x)(X_i - x)' + blockdiag(0, P)``.
+
+The split is found numerically from the model's Jacobians at a few points around ``x0`` (a
+measurement row whose Jacobian varies is nonlinear; the states the affine rows measure and no
+nonlinear row involves are candidates; a candidate stays linear when its dynamics rows involve
+linear states only and its Jacobian row and column are constant), or given by
+``linear_states``. Without a nonlinear measurement (the TAN model
+without terrain) the filter is a mixture of Kalman filters whose particles only carry the
+position.
+
+Resampling schemes and the block-drawn normals come from :mod:`uwcosim.filters.particle`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.linalg import lapack
+
+from uwcosim.errors import FilterDivergence, ScenarioError
+from uwcosim.filters.base import register
+from uwcosim.filters.kalman import FilterBase
+from uwcosim.filters.numerics import (
+    cholesky,
+    linearize,
+    psd_factor,
+    repair_pd,
+    symmetrize,
+)
+from uwcosim.filters.particle import RESAMPLERS, standard_normals
+
+NOISE_BLOCK_STEPS = 64
+_trtri = lapack.dtrtri
+_potrf = lapack.dpotrf
+_TINY = 1e-250
+
+
+def _quad_form(L: np.ndarray, y: np.ndarray) -> float:
+    """``y' (L L')^-1 y`` for a small lower triangular ``L`` (forward substitution in floats:
+    cheaper than a LAPACK call through numpy for the few rows of a measurement)."""
+    rows, b = L.tolist(), y.tolist()
+    acc = 0.0
+    for i, row in enumerate(rows):
+        v = b[i]
+        for j in range(i):
+            v -= row[j] * b[j]
+        v /= row[i]
+        b[i] = v
+        acc += v * v
+    return acc
+
+
+def block_slice(idx: list[int]):
+    """A basic slice for contiguous indices (cheaper than fancy indexing), else an array."""
+    if idx and list(idx) == list(range(idx[0], idx[0] + len(idx))):
+        return slice(idx[0], idx[0] + len(idx))
+    return np.asarray(idx, dtype=np.intp)
+
+
+def block_pair(rows: list[int], cols: list[int]):
+    """Index of the block ``rows x cols``: two slices when both are contiguous, else ``ix_``."""
+    r, c = block_slice(rows), block_slice(cols)
+    if isinstance(r, slice) and isinstance(c, slice):
+        return r, c
+    return np.ix_(rows, cols)
+
+
+def _split(model, x0, P0, use, linear_states, names) -> tuple[list[int], list[int]]:
+    """``(particle states, linear states)`` of the model (see the module docstring)."""
+    nx = model.nx
+    if linear_states is not None:
+        k = []
+        for s in linear_states:
+            if s not in names:
+                raise ValueError(f"unknown state {s!r} in linear_states "
+                                 f"(valid: {', '.join(names)})")
+            k.append(names.index(s))
+        k = sorted(set(k))
+        return [i for i in range(nx) if i not in k], k
+    rng = np.random.default_rng(0)  # local and fixed: the split must not depend on a seed
+    sd = np.sqrt(np.maximum(np.diag(P0), 0.0))
+    pts = [x0 + sd * rng.standard_normal(nx) * 3.0 for _ in range(4)]
+    Hs = np.array([model.H(x) for x in pts])[:, use]
+    nonlin = np.any(np.abs(Hs - Hs[0]) > 1e-12 * (1.0 + np.abs(Hs[0])), axis=0).any(axis=1)
+    on_nonlin = {j for r in np.flatnonzero(nonlin) for j in np.flatnonzero(Hs[0, r])}
+    k = {j for r in np.flatnonzero(~nonlin) for j in np.flatnonzero(Hs[0, r])} - on_nonlin
+    u = np.zeros(getattr(model, "nu", 0))
+    Fs = np.array([linearize(model, x, u, 1.0)[0] for x in pts])
+    vary = np.any(np.abs(Fs - Fs[0]) > 1e-12 * (1.0 + np.abs(Fs[0])), axis=0)
+    changed = True
+    while changed:
+        changed = False
+        for j in sorted(k):
+            outside = [i for i in range(nx) if i not in k and Fs[0, j, i] != 0.0]
+            if outside or vary[:, j].any() or vary[j].any():
+                k.discard(j)
+                changed = True
+    k = sorted(k)
+    return [i for i in range(nx) if i not in k], k
+
+
+@register("rbpf")
+class RaoBlackwellizedPF(FilterBase):
+    """Marginalized particle filter: particles on the nonlinear states, one Kalman filter per
+    particle (common covariance) on the linear-Gaussian ones.
+
+    Settings: ``n_particles`` (1000), ``resampling`` (as ``pf``: ``systematic``, ...),
+    ``ess_threshold`` (0.5), ``linear_states`` (names; default: found from the model),
+    ``seed``, ``rng``, ``measurements``.
+    """
+
+    def __init__(
+        self,
+        model,
+        x0,
+        P0,
+        n_particles: int = 1000,
+        resampling: str = "systematic",
+        ess_threshold: float = 0.5,
+        linear_states: list[str] | None = None,
+        seed: int | None = None,
+        rng: np.random.Generator | None = None,
+        measurements: list[str] | None = None,
+    ) -> None:
+        super().__init__(model, x0, P0, measurements)
+        if int(n_particles) < 2:
+            raise ValueError(f"n_particles must be at least 2, got {n_particles}")
+        if not 0.0 <= float(ess_threshold) <= 1.0:
+            raise ValueError(f"ess_threshold must be in [0, 1], got {ess_threshold}")
+        try:
+            self.resample = RESAMPLERS.get(resampling)
+        except ScenarioError as exc:
+            raise ValueError(str(exc)) from None
+        m = self.model
+        self.n = n = int(n_particles)
+        self.ess_threshold = float(ess_threshold)
+        names = tuple(m.state_names)
+        self.ip, self.ik = _split(m, self.x, self.P, self._use, linear_states, names)
+        ip, ik = self.ip, self.ik
+        if not ip:
+            raise ValueError("rbpf: every state is linear-Gaussian; use the Kalman filter 'kf'")
+        # measurement rows: on the linear states only (affine, constant) or on particle states
+        H0 = m.H(self.x)
+        self.rows_k = [r for r in range(m.nz) if not np.any(H0[r, ip])]
+        self.rows_p = [r for r in range(m.nz) if r not in self.rows_k]
+        mixed = [m.measurement_names[r] for r in self.rows_p if ik and np.any(H0[r, ik])]
+        if mixed:
+            raise ValueError(f"rbpf: measurements {mixed} depend on both particle and linear "
+                             "states (set linear_states)")
+        if self.rows_k and self.rows_p and np.any(m.R[np.ix_(self.rows_k, self.rows_p)]):
+            raise ValueError("rbpf: R must be block-diagonal between the measurements of the "
+                             "linear states and the others")
+        self._Hk = H0[np.ix_(self.rows_k, ik)] if self.rows_k else np.zeros((0, len(ik)))
+        self._kalman_row = np.zeros(m.nz, dtype=bool)
+        self._kalman_row[self.rows_k] = True
+        if seed is not None:
+            rng = np.random.default_rng(seed)
+        self.rng = rng if rng is not None else np.random.default_rng()
+        # particles, state-major: particle states drawn from N(x0, P0)_p, and the linear
+        # states' conditional means given them (exact conditioning of the Gaussian prior)
+        P = self.P
+        Lp = psd_factor(P[np.ix_(ip, ip)])
+        dev = Lp @ self.rng.standard_normal((len(ip), n))
+        self.particles = np.empty((m.nx, n))
+        self.particles[ip] = self.x[ip, None] + dev
+        if ik:
+            Ppp, Pkp = P[np.ix_(ip, ip)], P[np.ix_(ik, ip)]
+            G = np.linalg.lstsq(Ppp, Pkp.T, rcond=None)[0].T  # P_kp P_pp^-1
+            self.particles[ik] = self.x[ik, None] + G @ dev
+            self.Pk = symmetrize(P[np.ix_(ik, ik)] - G @ Pkp.T)
+        else:
+            self.Pk = np.zeros((0, 0))
+        self.logw = np.full(n, -math.log(n))
+        self._w = np.full(n, 1.0 / n)
+        self._normals: np.ndarray | None = None
+        self._next_normals = 0
+        self._x_stale = self._P_stale = True
+        self._sp, self._sk = block_slice(ip), block_slice(ik)
+        self._kk = block_pair(ik, ik)
+        perm = ip + ik
+        self._perm = None if perm == list(range(m.nx)) else np.asarray(perm, dtype=np.intp)
+        self._nkp = len(ip)
+        self._Paug = np.zeros((m.nx, m.nx))
+        self._eye_k = np.eye(len(ik))
+        self._block_cache: dict[bytes, tuple] = {}
+        self._D = np.empty_like(self.particles)  # centred particles, for P
+        self._half = np.full(m.nz, 0.5)
+
+    # estimate -----------------------------------------------------------------------------
+    @property
+    def x(self) -> np.ndarray:
+        if getattr(self, "_x_stale", False):
+            self._x = self.particles @ self._w
+            self._x_stale = False
+        return self._x
+
+    @x.setter
+    def x(self, value) -> None:
+        self._x = value
+
+    @property
+    def P(self) -> np.ndarray:
+        if getattr(self, "_P_stale", False):
+            D = np.subtract(self.particles, self.x[:, None], out=self._D)
+            P = (D * self._w) @ D.T
+            P = symmetrize(P)
+            if self.ik:
+                P[self._kk] += self.Pk
+            self._P = P
+            self._P_stale = False
+        return self._P
+
+    @P.setter
+    def P(self, value) -> None:
+        self._P = value
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Normalized particle weights (a copy)."""
+        return self._w.copy()
+
+    def _moved(self) -> None:
+        self._x_stale = self._P_stale = True
+
+    def _standard_normals(self, d: int) -> np.ndarray:
+        block, i = self._normals, self._next_normals
+        if block is None or i == block.shape[0]:
+            block = self._normals = standard_normals(self.rng, (NOISE_BLOCK_STEPS, d, self.n))
+            i = 0
+        self._next_normals = i + 1
+        return block[i]
+
+    # filter -------------------------------------------------------------------------------
+    def predict(self, u, dt: float) -> None:
+        """Steps 1-2 with one Cholesky factorization of the joint prediction covariance
+        ``S = F blockdiag(0, P) F' + Q`` ordered ``(p, k)``: its factor ``[[L_p, 0],
+        [L_kp, L_k]]`` gives ``p' - E[p'] = L_p e``, the conditioned linear means
+        ``S_kp S_pp^-1 (p' - E[p']) = L_kp e`` and ``P' = L_k L_k'`` (the Schur complement)."""
+        self._begin_predict()
+        F, Q = linearize(self.model, self.x, u, dt)
+        X = np.asarray(self.model.f_batch(self.particles.T, u, dt)).T  # means (a new array)
+        Pt = self._Paug  # blockdiag(0, P) in (p, k) order
+        Pt[self._nkp:, self._nkp:] = self.Pk
+        Fp = F if self._perm is None else F[np.ix_(self._perm, self._perm)]
+        Qp = Q if self._perm is None else Q[np.ix_(self._perm, self._perm)]
+        S = Fp @ Pt @ Fp.T
+        S += Qp
+        L, info = _potrf(S, lower=1, clean=1)
+        n_p = self._nkp
+        if info == 0:
+            noise = L[:, :n_p] @ self._standard_normals(n_p)
+            Lk = L[n_p:, n_p:]
+            self.Pk = Lk @ Lk.T
+        else:  # singular: pseudo-inverse conditioning
+            S = symmetrize(S)
+            Spp, Skp = S[:n_p, :n_p], S[n_p:, :n_p]
+            delta = psd_factor(Spp) @ self._standard_normals(n_p)
+            G = Skp @ np.linalg.pinv(Spp)  # S_kp S_pp^-1
+            noise = np.vstack((delta, G @ delta))
+            self.Pk = symmetrize(S[n_p:, n_p:] - G @ Skp.T)
+        if self._perm is None:
+            X += noise
+        else:
+            X[self._perm] += noise
+        if not math.isfinite(float(X.sum())):
+            raise FilterDivergence("rbpf prediction contains NaN or inf")
+        self.particles = X
+        self._moved()
+
+    def _blocks(self, idx: np.ndarray):
+        """Per set of available rows: ``(template of M with R in place, positions of the Kalman
+        rows (a slice when contiguous), H_k, index of their block)``."""
+        key = idx.tobytes()
+        out = self._block_cache.get(key)
+        if out is None:
+            kal = self._kalman_row[idx]
+            kpos = np.flatnonzero(kal)
+            rows = [self.rows_k.index(int(r)) for r in idx[kal]]
+            m = idx.size
+            nk = len(self.ik) if kpos.size else 0  # no Kalman row: the linear block stays
+            M0 = np.zeros((m + nk, m + nk))
+            M0[:m, :m] = self.model.R[np.ix_(idx, idx)]
+            kk = block_pair(list(kpos), list(kpos))
+            out = (M0, block_slice(list(kpos)), self._Hk[rows], kk, kpos.size > 0)
+            self._block_cache[key] = out
+        return out
+
+    def update(self, z, mask=None) -> None:
+        """Steps 3-5. One Cholesky factorization of ``M = [[C, H_k P], [P H_k', P]]``, ``C``
+        the per-particle predictive covariance of the available rows (``H_k P H_k' + R_k`` on
+        the Kalman rows, ``R_p`` on the others): with ``M = L L'``, ``L_11^-1 E`` whitens the
+        residuals (the log-likelihoods), ``L_21 L_11^-1 E`` is every particle's Kalman
+        correction ``K (zhat_i - z)`` and ``L_22 L_22'`` the updated covariance."""
+        idx = self._begin_update(z, mask)
+        if idx is None:
+            return
+        z = np.asarray(z, dtype=float)
+        Zt = np.asarray(self.model.h_batch(self.particles.T)).T  # (nz, N) predicted means
+        if idx.size < Zt.shape[0]:
+            Zt, z = Zt[idx], z[idx]
+        E = Zt - z[:, None]  # E_i = zhat_i - z
+        M0, kpos, Hk, kk, kalman = self._blocks(idx)
+        m = idx.size
+        M = M0.copy()
+        if kalman:
+            HP = Hk @ self.Pk
+            M[kpos, m:] = HP
+            M[m:, kpos] = HP.T
+            M[kk] += HP @ Hk.T
+            M[m:, m:] = self.Pk
+        L, info = _potrf(M, lower=1, clean=1)
+        if info != 0:  # repair the predictive block, then factor again
+            C, _ = repair_pd(M[:m, :m], self.diagnostics)
+            M[:m, :m] = C
+            M = symmetrize(M) + 1e-12 * np.mean(np.diag(M)) * np.eye(M.shape[0])
+            L, info = _potrf(M, lower=1, clean=1)
+            if info != 0:
+                raise FilterDivergence("rbpf: measurement update covariance is not definite")
+        L11 = L[:m, :m]
+        C = M[:m, :m]
+        w, logw = self._w, self.logw
+        # NIS of the predicted measurement (mixture with prior weights)
+        y = E @ w
+        S = (E * w) @ E.T
+        S -= y[:, None] * y
+        S += C
+        LS = cholesky(S)
+        if LS is None:
+            S, LS = repair_pd(S, self.diagnostics)
+        self.diagnostics["nis"] = _quad_form(LS, y)
+        self.diagnostics["nis_dof"] = float(m)
+        Li, info = _trtri(L11, lower=1)
+        if info != 0:  # pragma: no cover - L11 is a Cholesky factor
+            raise FilterDivergence("rbpf: singular measurement covariance")
+        W = Li @ E  # whitened residuals
+        if kalman:  # every particle's Kalman correction, common gain
+            self.particles[self._sk] -= L[m:, :m] @ W
+            L22 = L[m:, m:]
+            self.Pk = L22 @ L22.T
+        W *= W
+        logw -= self._half[:m] @ W  # log w_i += log N(z; zhat_i, C) = -1/2 |W_i|^2 + const
+        np.exp(logw, out=w)
+        total = float(w.sum())
+        if total > _TINY:
+            shift = math.log(total)
+        else:
+            top = float(logw.max())
+            if not math.isfinite(top):
+                raise FilterDivergence("rbpf weights are NaN or all zero")
+            np.exp(logw - top, out=w)
+            total = float(w.sum())
+            shift = top + math.log(total)
+        w *= 1.0 / total
+        logw -= shift
+        ess = 1.0 / float(w @ w)
+        self.diagnostics["ess"] = ess
+        resampled = self.ess_threshold >= 1.0 or ess < self.ess_threshold * self.n
+        if resampled:
+            self.particles = self.particles.take(self.resample(w, self.rng), axis=1)
+            w.fill(1.0 / self.n)
+            logw.fill(-math.log(self.n))
+        self.diagnostics["resampled"] = float(resampled)
+        self._moved()

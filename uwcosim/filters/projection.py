@@ -73,6 +73,7 @@ from scipy.linalg import expm
 from scipy.sparse.linalg import expm_multiply
 
 from uwcosim.errors import FilterDivergence
+from uwcosim.filters import projection_kernels as pk
 from uwcosim.filters import projection_ops as po
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.numerics import cholesky, symmetrize
@@ -87,6 +88,8 @@ from uwcosim.filters.projection_model import (
 POSITIVITY = ("auto", "none", "threshold", "clip", "product", "jackson")
 DENSE_EXPM_MAX = 1200  # basis size up to which exp(A dt) is formed densely
 REGROW = (2.0, 4.0, 8.0, 16.0)  # prior std inflations tried when the box holds no posterior
+_NO_D = np.zeros((2, 2))
+_NO_R = np.zeros(2)
 
 
 
@@ -131,9 +134,11 @@ class ProjectionFilter(Estimator):
         self.moment_match = bool(moment_match)
         self.gate = float(gate)
         self._gate_ll: dict[tuple, float] = {}
+        self.fast = False  # set below, once the basis is known
         self.part = Partition(model, states, measurements)
         self.kalman = ConditionalKalman(model, self.part, self.x, self.P, long_run)
         self.likelihood = GridLikelihood(model, self.part)
+        self._var = [float(v) for v in np.diag(model.R)]
         p = self.part.p
         self._ip, self._ik = block_index(p), block_index(self.part.k)
         self._pp, self._kk = block_index(p, p), block_index(self.part.k, self.part.k)
@@ -153,11 +158,17 @@ class ProjectionFilter(Estimator):
         )
         self._mean, self._cov = mean, cov
         self._after_update = False
+        #: compiled kernels (projection_kernels) for two gridded states when Numba is there;
+        #: False runs the numpy code (same results to round-off)
+        self.fast: bool = bool(pk.ENABLED and self.basis.n == 2 and positivity in ("auto", "none")
+                         and spectral_filter == 0)
         self._set_estimate()
 
     # ------------------------------------------------------------------------------------------
     def _box(self, mean, cov) -> tuple[np.ndarray, np.ndarray]:
         """Symmetric interval ``mean -+ k_sigma sigma`` (eq. 33), with a floor on the width."""
+        if self.fast:
+            return pk.box(mean, cov, self.k_sigma, self.min_halfwidth)
         sig = np.sqrt(np.maximum(np.diag(cov), 0.0))
         floor = np.maximum(self.min_halfwidth, 1e-9 * np.maximum(1.0, np.abs(mean)))
         half = np.maximum(self.k_sigma * sig, floor)
@@ -167,6 +178,12 @@ class ProjectionFilter(Estimator):
         self.x, self.P = assemble_estimate(self)
 
     def _normalize(self) -> float:
+        if self.fast:
+            mass = pk.hermitian_normalize(self.m, self.basis.sqrt_volume())
+            if not (math.isfinite(mass) and mass > 0):
+                self.diverged = True
+                raise FilterDivergence(f"{self.kind}: density lost its mass ({mass})")
+            return mass
         m = self.m
         m += np.conj(m[(slice(None, None, -1),) * m.ndim])  # Hermitian part (times 2)
         m *= 0.5
@@ -190,8 +207,25 @@ class ProjectionFilter(Estimator):
         self._after_update = False
         u = np.asarray(u, dtype=float).reshape(-1)
         part = self.part
-        xk_before = self.kalman.mean.copy()
+        xk_before = None if part.drift_constant else self.kalman.mean.copy()
         inc = self.kalman.increment(self.x, u, dt)
+        if part.drift_constant and self.fast:
+            self.m, lo, length, mean, cov, mass = pk.predict_shift(
+                self.m, self.basis.lo, self.basis.length, self._mean, self._cov, inc.d, inc.D,
+                self.k_sigma, self.min_halfwidth)
+            self.basis = self.basis.moved(lo, length)
+            if math.isfinite(mass) and mass > 0:  # normalized by the kernel
+                self.diagnostics["prior_mass"] = mass
+                self._mean, self._cov = mean, cov
+                self._set_estimate()
+                return
+            self.basis = self.basis.moved(*self._box(mean, cov))
+            self.m = po.gaussian_coefficients(mean, cov, self.basis)
+            self.diagnostics["gaussian_fallback"] = 1.0
+            self.diagnostics["prior_mass"] = self._normalize()
+            self._mean, self._cov = mean, cov
+            self._set_estimate()
+            return
         if part.drift_constant:
             # A diagonal: translation by the increment (moves the box) and diffusion decay
             new = self.basis.moved(*self._box(self._mean + inc.d, self._cov + inc.D))
@@ -252,7 +286,7 @@ class ProjectionFilter(Estimator):
             lo, length = self._box(mean, cov)
             if np.any(length < self.refine * self.basis.length):
                 new = self.basis.moved(lo, np.minimum(length, self.basis.length))
-                self.m = po.reproject(prior, prior_basis, new)
+                self.m = self._reproject(prior, prior_basis, new)
                 post2, mean2, cov2, ok2 = self._bayes(new, z, rows_g, record=False)
                 if ok2:
                     self.basis, post, mean, cov = new, post2, mean2, cov2
@@ -270,14 +304,19 @@ class ProjectionFilter(Estimator):
             self._report()
             return
         cell = self.basis.cell()
-        self.m = po.from_grid(post, self.basis)  # eqs. 45, 47
-        self.m /= float(post.sum() * cell)
-        if self.positivity == "jackson":
-            self.m = self.m * po.jackson_factors(self.basis)
-        if self._filter is not None:
-            self.m = self.m * self._filter
-        values = po.to_grid(self.m, self.basis)
-        neg = float(-np.minimum(values, 0.0).sum() * cell)
+        if self.fast:
+            tb = pk.tables(self.K, self.basis.M)
+            self.m, values, neg = pk.posterior_coefficients(post, tb[2], tb[3], tb[0], tb[1],
+                                                            self.basis.length)
+        else:
+            self.m = po.from_grid(post, self.basis)  # eqs. 45, 47
+            self.m /= float(post.sum() * cell)
+            if self.positivity == "jackson":
+                self.m = self.m * po.jackson_factors(self.basis)
+            if self._filter is not None:
+                self.m = self.m * self._filter
+            values = po.to_grid(self.m, self.basis)
+            neg = float(-np.minimum(values, 0.0).sum() * cell)
         diag["neg_mass"] = neg
         mode = self.positivity
         if mode == "auto":
@@ -377,8 +416,36 @@ class ProjectionFilter(Estimator):
             return np.maximum(values - a, 0.0) if a > 0 else values
         return np.maximum(values, 0.0)
 
+    def _reproject(self, m, basis, new):
+        if self.fast:
+            return pk.shift_decay(m, basis.lo, basis.length, new.lo, new.length, _NO_D, False)
+        return po.reproject(m, basis, new)
+
+    def _bayes_fast(self, basis, z, r: int, record: bool):
+        """:meth:`_bayes` for one terrain row and two gridded states (compiled kernels)."""
+        tg = self.likelihood.terrain_rows[r]
+        tb = pk.tables(self.K, basis.M)
+        values, E, V, neg, tmax, vmin = pk.bayes_terms(
+            self.m, tb[0], tb[1], basis.lo, basis.length, tg.t.coefficients, tg.tpar, tg.ipar,
+            float(z[r]), self._var[r], self.resolution_inflation)
+        if record:
+            self.diagnostics["neg_mass_prior"] = neg
+        E -= tmax
+        np.exp(E, out=E)
+        post, Z, mean, cov, status = pk.bayes_posterior(values, E, V, vmin, basis.lo,
+                                                        basis.length)
+        if status == 1:
+            return values, None, None, False
+        # ll = W + tmax - log(V) / 2; post used exp(ll - tmax + log(vmin) / 2)
+        shift = tmax - 0.5 * math.log(vmin) if self.resolution_inflation else tmax
+        self.diagnostics["loglik"] = math.log(Z) + shift
+        ok = math.isfinite(float(mean.sum() + cov.sum()))
+        return post, mean, cov, ok
+
     def _bayes(self, basis, z, rows_g, record: bool):
         """Prior times likelihood on the quadrature grid of ``basis``; its moments (eq. 50-51)."""
+        if self.fast and len(rows_g) == 1 and rows_g[0] in self.likelihood.terrain_rows:
+            return self._bayes_fast(basis, z, rows_g[0], record)
         cell = basis.cell()
         values = po.to_grid(self.m, basis)
         if record:

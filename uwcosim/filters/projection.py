@@ -162,6 +162,7 @@ class ProjectionFilter(Estimator):
         #: False runs the numpy code (same results to round-off)
         self.fast: bool = bool(pk.ENABLED and self.basis.n == 2 and positivity in ("auto", "none")
                          and spectral_filter == 0)
+        self.kalman.fast = self.fast
         self._set_estimate()
 
     # ------------------------------------------------------------------------------------------

@@ -285,7 +285,7 @@ class ProjectionFilter(Estimator):
             # re-centre on the posterior (eq. 33 with the posterior moments) and, when the
             # posterior box is much narrower, redo the product on its finer grid
             lo, length = self._box(mean, cov)
-            if np.any(length < self.refine * self.basis.length):
+            if (length < self.refine * self.basis.length).any():
                 new = self.basis.moved(lo, np.minimum(length, self.basis.length))
                 self.m = self._reproject(prior, prior_basis, new)
                 post2, mean2, cov2, ok2 = self._bayes(new, z, rows_g, record=False)
@@ -307,8 +307,17 @@ class ProjectionFilter(Estimator):
         cell = self.basis.cell()
         if self.fast:
             tb = pk.tables(self.K, self.basis.M)
-            self.m, values, neg = pk.posterior_coefficients(post, tb[2], tb[3], tb[0], tb[1],
-                                                            self.basis.length)
+            limit = self.neg_limit if self.positivity == "auto" else np.inf
+            self.m, values, neg, mass = pk.posterior_coefficients(
+                post, tb[2], tb[3], tb[0], tb[1], self.basis.length, limit)
+            if math.isfinite(mass) and mass > 0:  # no repair: normalized by the kernel
+                diag["neg_mass"] = neg
+                if self.positivity == "auto":
+                    diag["positivity_applied"] = 0.0
+                self._mean, self._cov = mean, cov
+                self._set_estimate()
+                self._report()
+                return
         else:
             self.m = po.from_grid(post, self.basis)  # eqs. 45, 47
             self.m /= float(post.sum() * cell)
@@ -431,7 +440,6 @@ class ProjectionFilter(Estimator):
             float(z[r]), self._var[r], self.resolution_inflation)
         if record:
             self.diagnostics["neg_mass_prior"] = neg
-        E -= tmax
         np.exp(E, out=E)
         post, Z, mean, cov, status = pk.bayes_posterior(values, E, V, vmin, basis.lo,
                                                         basis.length)
@@ -440,8 +448,7 @@ class ProjectionFilter(Estimator):
         # ll = W + tmax - log(V) / 2; post used exp(ll - tmax + log(vmin) / 2)
         shift = tmax - 0.5 * math.log(vmin) if self.resolution_inflation else tmax
         self.diagnostics["loglik"] = math.log(Z) + shift
-        ok = math.isfinite(float(mean.sum() + cov.sum()))
-        return post, mean, cov, ok
+        return post, mean, cov, status != 3
 
     def _bayes(self, basis, z, rows_g, record: bool):
         """Prior times likelihood on the quadrature grid of ``basis``; its moments (eq. 50-51)."""
@@ -497,10 +504,10 @@ class ProjectionFilter(Estimator):
     def _report(self) -> None:
         d = self.diagnostics
         d["n_basis"] = float(self.basis.size)
-        lo, hi = self.basis.lo, self.basis.hi
+        lo, hi = self.basis.lo.tolist(), self.basis.hi.tolist()
         for i, (klo, khi) in enumerate(self._keys):
-            d[klo] = float(lo[i])
-            d[khi] = float(hi[i])
+            d[klo] = lo[i]
+            d[khi] = hi[i]
 
     # ------------------------------------------------------------------------------------------
     @property

@@ -43,6 +43,14 @@ except ImportError:  # pragma: no cover
 TWO_PI = 2.0 * np.pi
 
 
+def _jit_fast(fn):
+    """Full fast-math (no NaN/inf assumed) for kernels that test nothing for finiteness: their
+    max/min reductions vectorize; a NaN input still reaches the callers' checks downstream."""
+    if numba is None:
+        return fn
+    return numba.njit(cache=True, nogil=True, error_model="numpy", fastmath=True)(fn)
+
+
 def _jit(fn):
     if numba is None:
         return fn
@@ -112,24 +120,25 @@ def _spline_weights(s, n):
 @_jit
 def terrain_depth(xs, ys, C, x0, y0, dx, dy, nx, ny, pad):
     """``h[i, j] = h_d(xs[i], ys[j])``: the map's cubic B-spline (coefficients ``C[y, x]``,
-    ``pad`` padding nodes) on a tensor grid, as :meth:`TerrainGrid.depth`."""
+    ``pad`` padding nodes) on a tensor grid, as :meth:`TerrainGrid.depth`: ``Wx C' Wy'`` with
+    banded weight matrices over the support (two BLAS products)."""
     iu, wu = _spline_weights((xs - x0) / dx, nx)
     iv, wv = _spline_weights((ys - y0) / dy, ny)
+    c0 = iu.min() - 1 + pad
+    c1 = iu.max() + 3 + pad
     r0 = iv.min() - 1 + pad
     r1 = iv.max() + 3 + pad
-    G = np.empty((xs.size, r1 - r0))
+    Wx = np.zeros((xs.size, c1 - c0))
+    Wy = np.zeros((ys.size, r1 - r0))
     for i in range(xs.size):
-        c = iu[i] - 1 + pad
-        for r in range(r0, r1):
-            G[i, r - r0] = (wu[i, 0] * C[r, c] + wu[i, 1] * C[r, c + 1]
-                            + wu[i, 2] * C[r, c + 2] + wu[i, 3] * C[r, c + 3])
-    h = np.empty((xs.size, ys.size))
-    for i in range(xs.size):
-        for j in range(ys.size):
-            r = iv[j] - 1 + pad - r0
-            h[i, j] = (wv[j, 0] * G[i, r] + wv[j, 1] * G[i, r + 1]
-                       + wv[j, 2] * G[i, r + 2] + wv[j, 3] * G[i, r + 3])
-    return h
+        for a in range(4):
+            Wx[i, iu[i] + pad - 1 - c0 + a] = wu[i, a]
+    for j in range(ys.size):
+        for a in range(4):
+            Wy[j, iv[j] + pad - 1 - r0 + a] = wv[j, a]
+    Csub = np.ascontiguousarray(C[r0:r1, c0:c1])  # (rows y, cols x)
+    G = Wx @ np.ascontiguousarray(Csub.T)  # (len xs, rows)
+    return G @ np.ascontiguousarray(Wy.T)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -191,7 +200,7 @@ def grid_axes(lo, length, M):
     return xs, ys
 
 
-@_jit
+@_jit_fast
 def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
     """Prior values, terrain log-likelihood terms and the prior's negative mass on the box
     ``(lo, length)`` (``M = Tx.shape[0]`` points per dimension).
@@ -245,6 +254,7 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
             W[i, j] = t
             tmax = max(tmax, t)
             vmin = min(vmin, V[i, j])
+    W -= tmax
     return values, W, V, -neg * cell, tmax, vmin
 
 
@@ -335,8 +345,8 @@ def bayes_posterior(values, E, V, vmin, lo, length):
     """``post = values E sqrt(vmin / V)`` (``E = exp(W - tmax)``), its mass and moments.
 
     Returns ``(post, Z, mean, cov, status)``: status 0 ok, 1 no posterior mass, 2 clipped
-    (a signed prior: the product of its clip was used, as in ``ProjectionFilter._bayes``).
-    Moments as :meth:`ProjectionFilter._grid_moments` (variances floored at ``(L/M)^2/12``).
+    (a signed prior: the product of its clip was used, as in ``ProjectionFilter._bayes``), 3
+    non-finite moments. Moments as :meth:`ProjectionFilter._grid_moments` (variances floored at ``(L/M)^2/12``).
     """
     M = values.shape[0]
     cell = (length[0] / M) * (length[1] / M)
@@ -370,12 +380,18 @@ def bayes_posterior(values, E, V, vmin, lo, length):
             return post, Z, np.zeros(2), np.zeros((2, 2)), 1
         mean, cov = _moments2(post, xs, ys, False)
     mean, cov = _floor_moments(post, xs, ys, mean, cov, floor0, floor1)
+    if not math.isfinite(mean.sum() + cov.sum()):
+        status = 3
     return post, Z, mean, cov, status
 
 
-@_jit
-def posterior_coefficients(post, Tg, Tm, Tq, Tx, length):
-    """``m = <post, phi> / mass(post)`` (eqs. 45, 47), its grid values and negative mass."""
+@_jit_fast
+def posterior_coefficients(post, Tg, Tm, Tq, Tx, length, neg_limit):
+    """``m = <post, phi> / mass(post)`` (eqs. 45, 47), its grid values and negative mass.
+
+    When the negative mass is at most ``neg_limit`` (no positivity repair follows), ``m`` is
+    also made Hermitian and normalized (:func:`hermitian_normalize`); the returned mass is then
+    that of the Hermitian series, else NaN."""
     M = post.shape[0]
     sv = math.sqrt(length[0] * length[1])
     cell = (length[0] / M) * (length[1] / M)
@@ -386,7 +402,11 @@ def posterior_coefficients(post, Tg, Tm, Tq, Tx, length):
     for i in range(M):
         for j in range(M):
             neg += min(values[i, j], 0.0)
-    return m, values, -neg * cell
+    neg = -neg * cell
+    mass = np.nan
+    if neg <= neg_limit:
+        mass = hermitian_normalize(m, sv)
+    return m, values, neg, mass
 
 
 @_jit
@@ -569,7 +589,7 @@ def spline_shift_2d(X, coords0, coords1, n0, n1):
     return np.ascontiguousarray(outT.T)
 
 
-@_jit
+@_jit_fast
 def terrain_exponent(xs, ys, C, tpar, ipar, z, var):
     """``ll - max(ll)`` of the terrain row, ``ll = -(h - z)^2 / (2 var)``, and ``max(ll)``
     (map as in :func:`bayes_terms`)."""
@@ -607,6 +627,16 @@ def grid_product_moments(values, lik, cell, xs, ys):
         post = values
     mean, cov = _moments2(post, xs, ys, False)
     return post, Z, mean, cov
+
+
+@_jit
+def available_bits(z, mask, use):
+    """Bit ``r`` set when ``z[r]`` is finite and ``mask[r]`` and ``use[r]`` (``split_rows``)."""
+    bits = 0
+    for r in range(z.size):
+        if mask[r] and use[r] and math.isfinite(z[r]):
+            bits |= 1 << r
+    return bits
 
 
 # ---------------------------------------------------------------------------------------------

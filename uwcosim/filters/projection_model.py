@@ -65,7 +65,7 @@ class FastFunction:
 
     def __call__(self, *args) -> list[np.ndarray]:
         for a, v in zip(self._in, args, strict=False):
-            a[:] = np.ravel(v)
+            a[:] = v if getattr(v, "ndim", 1) <= 1 else np.ravel(v)
         self._eval()
         pairs = zip(self._out, self._shapes, strict=True)
         return [r.reshape(s, order="F").copy() for r, s in pairs]
@@ -207,6 +207,19 @@ class Partition:
 
     def split_rows(self, z, mask, nz: int):
         """``(z, kalman rows, grid rows)`` of the measurement components available now."""
+        if pk.ENABLED and z is not None:
+            z = np.asarray(z, dtype=float)
+            bits = pk.available_bits(z, self.use if mask is None else np.asarray(mask, bool),
+                                     self.use)
+            if bits == 0:
+                return z, [], []
+            split = self._splits.get(bits)
+            if split is None:
+                rows = [r for r in range(nz) if bits >> r & 1]
+                split = ([r for r in rows if r in self.rows_kalman],
+                         [r for r in rows if r in self.rows_grid])
+                self._splits[bits] = split
+            return z, list(split[0]), list(split[1])
         if z is not None:
             mask = self.use if mask is None else (np.asarray(mask, bool) & self.use)
         idx = select(z, mask, nz)

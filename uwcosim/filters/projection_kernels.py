@@ -346,7 +346,8 @@ def bayes_posterior(values, E, V, vmin, lo, length):
 
     Returns ``(post, Z, mean, cov, status)``: status 0 ok, 1 no posterior mass, 2 clipped
     (a signed prior: the product of its clip was used, as in ``ProjectionFilter._bayes``), 3
-    non-finite moments. Moments as :meth:`ProjectionFilter._grid_moments` (variances floored at ``(L/M)^2/12``).
+    non-finite moments. Moments as :meth:`ProjectionFilter._grid_moments` (variances floored
+    at ``(L/M)^2/12``).
     """
     M = values.shape[0]
     cell = (length[0] / M) * (length[1] / M)

@@ -15,12 +15,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import lapack
 
-_gesv = lapack.dgesv
-
 from uwcosim.errors import FilterDivergence, ScenarioError
 from uwcosim.filters import ESTIMATORS, Estimator
 from uwcosim.filters.numerics import check_finite
 from uwcosim.master.sources import gaussian, stream
+
+_gesv = lapack.dgesv
 
 
 @dataclass

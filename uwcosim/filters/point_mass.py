@@ -293,8 +293,9 @@ class PointMassFilter(Estimator):
     @axes.setter
     def axes(self, axes: list[np.ndarray]) -> None:
         self._axes = axes
-        self._spacing = np.array([a[1] - a[0] for a in axes])
-        self._cell = float(np.prod(self._spacing))
+        spacing = [float(a[1] - a[0]) for a in axes]
+        self._spacing = np.array(spacing)
+        self._cell = math.prod(spacing)
 
     @property
     def spacing(self) -> np.ndarray:
@@ -322,7 +323,9 @@ class PointMassFilter(Estimator):
         self._after_update = False
         u = np.asarray(u, dtype=float).reshape(-1)
         inc = self.kalman.increment(self.x, u, dt)
-        if self.part.drift_constant:
+        if self.part.drift_constant and self.fast:
+            self._predict_shift_fast(inc)
+        elif self.part.drift_constant:
             new = self._grid(self._mean + inc.d, self._cov + inc.D)
             old = self.spacing
             coords = [(new[d] - inc.d[d] - self.axes[d][0]) / old[d] for d in range(len(new))]
@@ -337,6 +340,35 @@ class PointMassFilter(Estimator):
             self._normalize()
             self._mean, self._cov = axes_moments(self.axes, self.values)
         self._set_estimate()
+
+    def _predict_shift_fast(self, inc) -> None:
+        """The drift-independent prediction (:func:`shift_blur` and the moments) in three
+        compiled kernels around the two FFTs."""
+        D = inc.D
+        sp0, sp1 = self._spacing.tolist()
+        n0, n1 = self.values.shape
+        p0 = max(int(math.ceil(7.0 * math.sqrt(max(D[0, 0], 0.0)) / sp0)) + 1, SPLINE_PAD)
+        p1 = max(int(math.ceil(7.0 * math.sqrt(max(D[1, 1], 0.0)) / sp1)) + 1, SPLINE_PAD)
+        shape = (sfft.next_fast_len(n0 + min(p0, n0), real=True),
+                 sfft.next_fast_len(n1 + min(p1, n1), real=True))
+        buf = _PADDED.get(shape)
+        if buf is None:
+            if len(_PADDED) > 16:
+                _PADDED.clear()
+            buf = _PADDED[shape] = np.zeros(shape)
+        new0, new1, c0, c1, mean, cov = pk.pm_grid_shift(
+            self.values, self._axes[0], self._axes[1], self._mean, self._cov, inc.d, D,
+            self.span, self._unit[0], self._unit[1], buf)
+        X = sfft.rfft2(buf)
+        col, row = _inverse_bspline_factors(shape)
+        pk.pm_gauss_prefilter(X, shape[1], sp0, sp1, D, col, row)
+        out = sfft.irfft2(X, s=shape)
+        self.axes = [new0, new1]
+        self.values, mass = pk.pm_finish(out, c0, c1, n0, n1, self._cell)
+        if not (math.isfinite(mass) and mass > 0):
+            self.diverged = True
+            raise FilterDivergence(f"{self.kind}: grid density lost its mass ({mass})")
+        self._mean, self._cov = mean, cov
 
     def _chapman_kolmogorov(self, u, dt: float, inc) -> None:
         p = self.part.p
@@ -418,7 +450,10 @@ class PointMassFilter(Estimator):
                 self.diagnostics["loglik"] = float(np.log(Z) + llmax)
             else:
                 self.diagnostics["update_skipped"] = 1.0
-        self._mean, self._cov = axes_moments(self.axes, self.values)
+        if self.fast:
+            self._mean, self._cov = pk.moments2(self.values, self.axes[0], self.axes[1])
+        else:
+            self._mean, self._cov = axes_moments(self.axes, self.values)
         self._finish_update()
 
     def _finish_update(self) -> None:

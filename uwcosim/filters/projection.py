@@ -89,6 +89,15 @@ POSITIVITY = ("auto", "none", "threshold", "clip", "product", "jackson")
 DENSE_EXPM_MAX = 1200  # basis size up to which exp(A dt) is formed densely
 REGROW = (2.0, 4.0, 8.0, 16.0)  # prior std inflations tried when the box holds no posterior
 _NO_D = np.zeros((2, 2))
+_ONES: dict[int, np.ndarray] = {}
+
+
+def _ones(M: int) -> np.ndarray:
+    one = _ONES.get(M)
+    if one is None:
+        one = _ONES[M] = np.ones((M, M))
+        one.setflags(write=False)
+    return one
 _NO_R = np.zeros(2)
 
 
@@ -454,6 +463,17 @@ class ProjectionFilter(Estimator):
         """Prior times likelihood on the quadrature grid of ``basis``; its moments (eq. 50-51)."""
         if self.fast and len(rows_g) == 1 and rows_g[0] in self.likelihood.terrain_rows:
             return self._bayes_fast(basis, z, rows_g[0], record)
+        if self.fast and not rows_g:  # no grid measurement: the prior's grid and moments
+            tb = pk.tables(self.K, basis.M)
+            values, neg = pk.prior_values(self.m, tb[0], tb[1], basis.length)
+            if record:
+                self.diagnostics["neg_mass_prior"] = neg
+            one = _ones(basis.M)
+            post, _, mean, cov, status = pk.bayes_posterior(values, one, one, 1.0, basis.lo,
+                                                            basis.length)
+            if status == 1:
+                return values, None, None, False
+            return post, mean, cov, status != 3
         cell = basis.cell()
         values = po.to_grid(self.m, basis)
         if record:

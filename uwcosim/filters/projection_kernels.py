@@ -258,6 +258,24 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
     return values, W, V, -neg * cell, tmax, vmin
 
 
+@_jit_fast
+def prior_values(m, Tq, Tx, length):
+    """Grid values of the prior series and their negative mass (no grid measurement rows)."""
+    M = Tx.shape[0]
+    values = to_grid2(m, Tq, Tx, 1.0 / math.sqrt(length[0] * length[1]))
+    neg = 0.0
+    for i in range(M):
+        for j in range(M):
+            neg += min(values[i, j], 0.0)
+    return values, -neg * (length[0] / M) * (length[1] / M)
+
+
+@_jit
+def moments2(post, xs, ys):
+    """Mean and covariance of the weights ``post`` on the grid ``xs x ys``."""
+    return _moments2(post, xs, ys, False)
+
+
 @_jit
 def _moments2(post, xs, ys, clip):
     """Mean and covariance of (signed, or clipped) weights on the tensor grid (eqs. 50-51)."""
@@ -590,6 +608,71 @@ def spline_shift_2d(X, coords0, coords1, n0, n1):
     return np.ascontiguousarray(outT.T)
 
 
+@_jit
+def pm_grid_shift(values, ax0, ax1, mean, cov, d, D, span, unit0, unit1, buf):
+    """First part of the point-mass prediction (drift independent of the grid).
+
+    The new grid ``mean + d -+ span sigma`` (``sigma`` from ``cov + D``; ``PointMassFilter._grid``),
+    the fractional coordinates on the old grid of its points pulled back by ``d``, and ``values``
+    copied into the top-left block of the zero-padded FFT buffer ``buf``. Returns
+    ``(new0, new1, coords0, coords1, mean, cov)`` (the predicted moments: exact for a
+    translation and a Gaussian convolution)."""
+    mean2 = mean + d
+    cov2 = cov + D
+    out = []
+    for k in range(2):
+        sig = math.sqrt(max(cov2[k, k], 0.0))
+        half = max(span * sig, 1e-9 * max(1.0, abs(mean2[k])))
+        u = unit0 if k == 0 else unit1
+        a = u * half
+        a += mean2[k]
+        out.append(a)
+    new0, new1 = out[0], out[1]
+    sp0 = ax0[1] - ax0[0]
+    sp1 = ax1[1] - ax1[0]
+    c0 = (new0 - d[0] - ax0[0]) / sp0
+    c1 = (new1 - d[1] - ax1[0]) / sp1
+    n0, n1 = values.shape
+    for i in range(buf.shape[0]):
+        for j in range(buf.shape[1]):
+            buf[i, j] = values[i, j] if (i < n0 and j < n1) else 0.0
+    return new0, new1, c0, c1, mean2, _sym(cov2)
+
+
+@_jit
+def pm_gauss_prefilter(X, L1, sp0, sp1, D, col, row):
+    """``X *= exp(-w' D w / 2) * prefilter`` on a real-FFT spectrum (two dimensions, grid
+    spacings ``sp0``, ``sp1``, padded length ``L1`` of the last axis): the diagonal factors
+    per index, the cross term ``exp(-D01 a_i b_j) = q_i^j`` (``b_j = j b_1`` on the last,
+    real-FFT axis) by powers."""
+    N0, N1 = X.shape
+    b1 = TWO_PI / L1 / sp1
+    eb = np.empty(N1)
+    for j in range(N1):
+        b = j * b1
+        eb[j] = math.exp(-0.5 * D[1, 1] * b * b) * row[0, j]
+    for i in range(N0):
+        k = i if i < (N0 + 1) // 2 else i - N0
+        a = TWO_PI * k / N0 / sp0
+        ea = math.exp(-0.5 * D[0, 0] * a * a) * col[i, 0]
+        q = math.exp(-D[0, 1] * a * b1)
+        p = 1.0
+        for j in range(N1):
+            X[i, j] *= ea * eb[j] * p
+            p *= q
+
+
+@_jit
+def pm_finish(X, coords0, coords1, n0, n1, cell):
+    """Spline at the shifted points (clipped at 0) and normalization: ``(values, mass)``;
+    ``values`` are divided by the mass when it is finite and positive."""
+    out = spline_shift_2d(X, coords0, coords1, n0, n1)
+    mass = out.sum() * cell
+    if math.isfinite(mass) and mass > 0.0:
+        out /= mass
+    return out, mass
+
+
 @_jit_fast
 def terrain_exponent(xs, ys, C, tpar, ipar, z, var):
     """``ll - max(ll)`` of the terrain row, ``ll = -(h - z)^2 / (2 var)``, and ``max(ll)``
@@ -615,18 +698,25 @@ def grid_product_moments(values, lik, cell, xs, ys):
     skipped, ``Z`` is returned for the caller to report)."""
     Mx, My = values.shape
     post = np.empty((Mx, My))
-    s = 0.0
+    m0 = np.zeros(Mx)
+    m1 = np.zeros(My)
     for i in range(Mx):
+        acc = 0.0
         for j in range(My):
             p = values[i, j] * lik[i, j]
             post[i, j] = p
-            s += p
-    Z = s * cell
+            acc += p
+            m1[j] += p
+        m0[i] = acc
+    Z = m0.sum() * cell
     if math.isfinite(Z) and Z > 0.0:
         post /= Z
+        m0 /= Z
+        m1 /= Z
+        mean, cov = _moments2_marginals(post, m0, m1, xs, ys)
     else:
         post = values
-    mean, cov = _moments2(post, xs, ys, False)
+        mean, cov = _moments2(post, xs, ys, False)
     return post, Z, mean, cov
 
 

@@ -614,7 +614,8 @@ def pm_grid_shift(values, ax0, ax1, mean, cov, d, D, span, unit0, unit1, buf):
 
     The new grid ``mean + d -+ span sigma`` (``sigma`` from ``cov + D``;
     ``PointMassFilter._grid``), the fractional coordinates on the old grid of its points
-    pulled back by ``d``, and ``values`` copied into the top-left block of the zero-padded FFT buffer ``buf``. Returns
+    pulled back by ``d``, and ``values`` copied into the top-left block of the zero-padded
+    FFT buffer ``buf``. Returns
     ``(new0, new1, coords0, coords1, mean, cov)`` (the predicted moments: exact for a
     translation and a Gaussian convolution)."""
     mean2 = mean + d

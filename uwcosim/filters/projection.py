@@ -217,25 +217,11 @@ class ProjectionFilter(Estimator):
         self._after_update = False
         u = np.asarray(u, dtype=float).reshape(-1)
         part = self.part
+        if part.drift_constant and self.fast:
+            self._predict_fast(u, dt)
+            return
         xk_before = None if part.drift_constant else self.kalman.mean.copy()
         inc = self.kalman.increment(self.x, u, dt)
-        if part.drift_constant and self.fast:
-            self.m, lo, length, mean, cov, mass = pk.predict_shift(
-                self.m, self.basis.lo, self.basis.length, self._mean, self._cov, inc.d, inc.D,
-                self.k_sigma, self.min_halfwidth)
-            self.basis = self.basis.moved(lo, length)
-            if math.isfinite(mass) and mass > 0:  # normalized by the kernel
-                self.diagnostics["prior_mass"] = mass
-                self._mean, self._cov = mean, cov
-                self._set_estimate()
-                return
-            self.basis = self.basis.moved(*self._box(mean, cov))
-            self.m = po.gaussian_coefficients(mean, cov, self.basis)
-            self.diagnostics["gaussian_fallback"] = 1.0
-            self.diagnostics["prior_mass"] = self._normalize()
-            self._mean, self._cov = mean, cov
-            self._set_estimate()
-            return
         if part.drift_constant:
             # A diagonal: translation by the increment (moves the box) and diffusion decay
             new = self.basis.moved(*self._box(self._mean + inc.d, self._cov + inc.D))
@@ -277,6 +263,36 @@ class ProjectionFilter(Estimator):
             self._mean, self._cov = mean, cov
         else:
             self._moments()
+        self._set_estimate()
+
+    def _predict_fast(self, u, dt: float) -> None:
+        """:meth:`predict` for a drift independent of the gridded states: the conditional
+        Kalman prediction, the moved and decayed series and ``(x, P)`` in one compiled call."""
+        kal = self.kalman
+        fx, F, Q = kal.step(self.x, u, dt)
+        use_phi = kal.long_run and kal._phi is not None and bool(kal.k)
+        (m, lo, length, mean, cov, mass, kmean, kcov, Fkk, x, P, finite) = pk.predict_step(
+            self.x, fx.reshape(-1), F, Q, kal._p_arr, kal._k_arr, kal.cov,
+            kal._phi if use_phi else kal._eye, use_phi, self.m, self.basis.lo,
+            self.basis.length, self._mean, self._cov, self.k_sigma, self.min_halfwidth)
+        kal.mean, kal.cov = kmean, kcov
+        if kal.k:
+            kal._F = Fkk
+        self.m = m
+        self.basis = self.basis.moved(lo, length)
+        self._mean, self._cov = mean, cov
+        if math.isfinite(mass) and mass > 0:  # normalized by the kernel
+            self.diagnostics["prior_mass"] = mass
+            if not finite:
+                self.diverged = True
+                raise FilterDivergence(f"{self.kind}: non-finite estimate")
+            self.x, self.P = x, P
+            return
+        # the signed series lost its mass on the new box: the Gaussian of the predicted moments
+        self.basis = self.basis.moved(*self._box(mean, cov))
+        self.m = po.gaussian_coefficients(mean, cov, self.basis)
+        self.diagnostics["gaussian_fallback"] = 1.0
+        self.diagnostics["prior_mass"] = self._normalize()
         self._set_estimate()
 
     def update(self, z, mask=None) -> None:

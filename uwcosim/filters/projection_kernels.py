@@ -900,3 +900,21 @@ def assemble(nx, p, k, mean_p, cov_p, mean_k, cov_k):
             P[k[a], k[b]] = cov_k[a, b]
     finite = math.isfinite(x.sum() + P.sum())
     return x, _sym(P), finite
+
+
+@_jit
+def predict_step(x, fx, F, Q, p, k, kcov, phi, use_phi, m, lo, length, mean, cov, k_sigma,
+                 min_halfwidth):
+    """One ``ProjectionFilter.predict`` (drift independent of the gridded states) after the
+    model call ``(fx, F, Q)``: :func:`kalman_increment`, :func:`predict_shift` and
+    :func:`assemble` in one call. Returns ``(m, lo, length, mean, cov, mass, kmean, kcov, Fkk,
+    x, P, finite)``."""
+    d, D, _, kmean, kcov2 = kalman_increment(x, fx, F, Q, p, k, kcov, phi, use_phi)
+    m2, lo2, len2, mean2, cov2, mass = predict_shift(m, lo, length, mean, cov, d, D, k_sigma,
+                                                     min_halfwidth)
+    Fkk = np.empty((k.size, k.size))
+    for a in range(k.size):
+        for b in range(k.size):
+            Fkk[a, b] = F[k[a], k[b]]
+    x2, P2, finite = assemble(x.size, p, k, mean2, cov2, kmean, kcov2)
+    return m2, lo2, len2, mean2, cov2, mass, kmean, kcov2, Fkk, x2, P2, finite

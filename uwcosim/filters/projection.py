@@ -310,7 +310,9 @@ class ProjectionFilter(Estimator):
             # re-centre on the posterior (eq. 33 with the posterior moments) and, when the
             # posterior box is much narrower, redo the product on its finer grid
             lo, length = self._box(mean, cov)
-            if (length < self.refine * self.basis.length).any():
+            r = self.refine
+            if any(a < r * b for a, b in zip(length.tolist(), self.basis.length.tolist(),
+                                             strict=True)):
                 new = self.basis.moved(lo, np.minimum(length, self.basis.length))
                 self.m = self._reproject(prior, prior_basis, new)
                 post2, mean2, cov2, ok2 = self._bayes(new, z, rows_g, record=False)
@@ -333,14 +335,19 @@ class ProjectionFilter(Estimator):
         if self.fast:
             tb = pk.tables(self.K, self.basis.M)
             limit = self.neg_limit if self.positivity == "auto" else np.inf
-            self.m, values, neg, mass = pk.posterior_coefficients(
-                post, tb[2], tb[3], tb[0], tb[1], self.basis.length, limit)
+            kal = self.kalman
+            self.m, values, neg, mass, x, P, finite = pk.posterior_step(
+                post, tb[2], tb[3], tb[0], tb[1], self.basis.length, limit, self.x.size,
+                kal._p_arr, kal._k_arr, mean, cov, kal.mean, kal.cov)
             if math.isfinite(mass) and mass > 0:  # no repair: normalized by the kernel
                 diag["neg_mass"] = neg
                 if self.positivity == "auto":
                     diag["positivity_applied"] = 0.0
                 self._mean, self._cov = mean, cov
-                self._set_estimate()
+                if not finite:
+                    self.diverged = True
+                    raise FilterDivergence(f"{self.kind}: non-finite estimate")
+                self.x, self.P = x, P
                 self._report()
                 return
         else:

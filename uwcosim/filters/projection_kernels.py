@@ -918,3 +918,15 @@ def predict_step(x, fx, F, Q, p, k, kcov, phi, use_phi, m, lo, length, mean, cov
             Fkk[a, b] = F[k[a], k[b]]
     x2, P2, finite = assemble(x.size, p, k, mean2, cov2, kmean, kcov2)
     return m2, lo2, len2, mean2, cov2, mass, kmean, kcov2, Fkk, x2, P2, finite
+
+
+@_jit
+def posterior_step(post, Tg, Tm, Tq, Tx, length, neg_limit, nx, p, k, mean, cov, kmean, kcov):
+    """:func:`posterior_coefficients` and, when the series needs no repair, :func:`assemble`
+    of ``(x, P)`` from the posterior moments: ``(m, values, neg, mass, x, P, finite)``."""
+    m, values, neg, mass = posterior_coefficients(post, Tg, Tm, Tq, Tx, length, neg_limit)
+    if math.isfinite(mass) and mass > 0.0:
+        x, P, finite = assemble(nx, p, k, mean, cov, kmean, kcov)
+    else:
+        x, P, finite = np.zeros(nx), np.zeros((nx, nx)), False
+    return m, values, neg, mass, x, P, finite

@@ -86,22 +86,28 @@ def scale_out(args) -> None:
     from distributed import LocalCluster
 
     spec = load_campaign(SPEC)
-    rates = {}
+    rates, per_run_wall = {}, {}
     for n_workers in (1, 2):
         with LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
                           dashboard_address=None) as cluster, \
                 tempfile.TemporaryDirectory() as tmp:
+            load0 = os.getloadavg()[0]
             a = time.perf_counter()
             s = run_campaign(spec, Path(tmp), runs=args.runs, scheduler=cluster.scheduler_address,
                              figures=False)
             wall = time.perf_counter() - a
+            walls = [r["wall_s"] for r in _records(Path(tmp))]
             rates[n_workers] = s["runs"] / wall
+            per_run_wall[n_workers] = statistics.median(walls)
             print(f"Dask, {n_workers} worker(s): {s['runs']} runs in {wall:.1f} s = "
-                  f"{rates[n_workers]:.3f} runs/s")
+                  f"{rates[n_workers]:.3f} runs/s; run wall time median "
+                  f"{per_run_wall[n_workers]:.2f} s; load average {load0:.1f} -> "
+                  f"{os.getloadavg()[0]:.1f}")
     ratio = rates[2] / rates[1]
     print(f"throughput 2 workers / 1 worker: {ratio:.2f} (goal >= 1.8: "
-          f"{'met' if ratio >= 1.8 else 'NOT met'}); {os.cpu_count()} CPUs, load average "
-          f"{os.getloadavg()[0]:.1f}")
+          f"{'met' if ratio >= 1.8 else 'NOT met'}) on {os.cpu_count()} CPUs")
+    print(f"a run took {per_run_wall[2] / per_run_wall[1]:.2f}x as long with 2 workers as with "
+          f"1: above 1, the workers did not get a core each (other load on the machine)")
 
 
 def main() -> None:

@@ -269,10 +269,10 @@ class ProjectionFilter(Estimator):
         """:meth:`predict` for a drift independent of the gridded states: the conditional
         Kalman prediction, the moved and decayed series and ``(x, P)`` in one compiled call."""
         kal = self.kalman
-        fx, F, Q = kal.step(self.x, u, dt)
+        fx, F, Q = kal.step.views(self.x, u, dt)  # consumed by the kernel at once
         use_phi = kal.long_run and kal._phi is not None and bool(kal.k)
         (m, lo, length, mean, cov, mass, kmean, kcov, Fkk, x, P, finite) = pk.predict_step(
-            self.x, fx.reshape(-1), F, Q, kal._p_arr, kal._k_arr, kal.cov,
+            self.x, fx[:, 0], F, Q, kal._p_arr, kal._k_arr, kal.cov,
             kal._phi if use_phi else kal._eye, use_phi, self.m, self.basis.lo,
             self.basis.length, self._mean, self._cov, self.k_sigma, self.min_halfwidth)
         kal.mean, kal.cov = kmean, kcov

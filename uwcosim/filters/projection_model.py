@@ -62,6 +62,8 @@ class FastFunction:
             self._buf.set_arg(i, memoryview(a))
         for i, r in enumerate(self._out):
             self._buf.set_res(i, memoryview(r))
+        self._views = [r.reshape(s, order="F") for r, s in zip(self._out, self._shapes,
+                                                                 strict=True)]
 
     def __call__(self, *args) -> list[np.ndarray]:
         for a, v in zip(self._in, args, strict=False):
@@ -69,6 +71,14 @@ class FastFunction:
         self._eval()
         pairs = zip(self._out, self._shapes, strict=True)
         return [r.reshape(s, order="F").copy() for r, s in pairs]
+
+    def views(self, *args) -> list[np.ndarray]:
+        """As a call, but the outputs are views of the internal buffers (Fortran order), valid
+        until the next call: for a caller that consumes them at once."""
+        for a, v in zip(self._in, args, strict=False):
+            a[:] = v if getattr(v, "ndim", 1) <= 1 else np.ravel(v)
+        self._eval()
+        return self._views
 
 
 def _resolve_states(spec, names: tuple[str, ...]) -> list[int]:

@@ -57,6 +57,7 @@ def per_run(args) -> None:
         wall = time.perf_counter() - a
         recs = _records(Path(tmp))
     walls = [r["wall_s"] for r in recs]
+    cpus = [r["cpu_s"] for r in recs]
     n = len(recs)
     print(f"{n} runs ({args.runs} per variant, 1 worker in this process): {wall:.1f} s; "
           f"run wall time mean {statistics.mean(walls):.2f} s, median "
@@ -72,12 +73,16 @@ def per_run(args) -> None:
         paper = f"{PAPER_S[name]:7.1f} s" if name in PAPER_S else "      -"
         print(f"  {name:12s} {statistics.mean(times):6.2f} s   paper {paper}")
     cost = statistics.median(walls)
+    cpu = statistics.median(cpus)
     print(f"filters {filt:.2f} s of a {cost:.2f} s run ({100 * filt / cost:.0f}%); "
           f"co-simulation, log and bookkeeping {cost - filt:.2f} s")
+    print(f"CPU time of a run: median {cpu:.2f} s (wall {cost:.2f} s: the difference is "
+          f"waiting for a core; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs)")
     for w in sorted({1, 2, args.workers}):
-        est = full * cost / w
         goal = " (goal <= 6 min on 2 cores)" if w == 2 else ""
-        print(f"extrapolated: {full} runs on {w} worker(s): {est / 60:.1f} min{goal}")
+        print(f"extrapolated: {full} runs on {w} worker(s): {full * cost / w / 60:.1f} min from "
+              f"the wall time, {full * cpu / w / 60:.1f} min from the CPU time (a core per "
+              f"worker){goal}")
     peak = max((r.get("peak_rss_mb", 0.0) for r in recs), default=float("nan"))
     print(f"peak RSS of the worker: {peak:.0f} MB (goal <= 1024 MB)")
 

@@ -21,43 +21,62 @@ to round-off (``tests/test_projection_kernels.py`` runs both paths). Exponential
 grids stay in numpy (its SIMD ``exp`` is several times faster than a compiled scalar loop).
 
 Numba is optional: without it (or with ``UWCOSIM_NUMBA=0`` in the environment) :data:`ENABLED`
-is False and the filters run their numpy code. Compiled kernels are cached on disk
-(``cache=True``), so campaign worker processes load them instead of compiling.
+is False and the filters run their numpy code. Numba is imported at the first kernel call, not
+at import (about 0.5 s that scenarios without these filters do not pay). Compiled kernels are
+cached on disk (``cache=True``), so campaign worker processes load them instead of compiling.
 """
 
 from __future__ import annotations
 
+import functools
+import importlib.util
 import math
 import os
 
 import numpy as np
 
-try:  # pragma: no cover - exercised by whichever environment runs the tests
-    import numba
-
-    ENABLED = os.environ.get("UWCOSIM_NUMBA", "1") != "0"
-except ImportError:  # pragma: no cover
-    numba = None
-    ENABLED = False
+ENABLED = (importlib.util.find_spec("numba") is not None
+           and os.environ.get("UWCOSIM_NUMBA", "1") != "0")
 
 TWO_PI = 2.0 * np.pi
+
+# Numba is imported (about 0.5 s) and the kernels are bound to their compiled versions at the
+# first call of any kernel, not at import: scenarios without these filters do not pay for it.
+_PLAIN: dict[str, tuple] = {}  # name -> (python function, fastmath flags)
+
+
+def _compile_all() -> None:
+    import numba
+
+    g = globals()
+    for name, (fn, fastmath) in _PLAIN.items():
+        g[name] = numba.njit(cache=True, nogil=True, error_model="numpy",
+                             fastmath=fastmath)(fn)
+    _PLAIN.clear()
+
+
+def _register(fn, fastmath):
+    _PLAIN[fn.__name__] = (fn, fastmath)
+
+    @functools.wraps(fn)
+    def first_call(*args):
+        if _PLAIN:
+            _compile_all()
+        return globals()[fn.__name__](*args)
+
+    return first_call
 
 
 def _jit_fast(fn):
     """Full fast-math (no NaN/inf assumed) for kernels that test nothing for finiteness: their
     max/min reductions vectorize; a NaN input still reaches the callers' checks downstream."""
-    if numba is None:
-        return fn
-    return numba.njit(cache=True, nogil=True, error_model="numpy", fastmath=True)(fn)
+    return _register(fn, True)
 
 
 def _jit(fn):
-    if numba is None:
-        return fn
-    # reassociation lets sums and maxima vectorize (round-off level changes); NaN and inf keep
-    # their IEEE meaning (no 'nnan'/'ninf'): the filters test finiteness
-    return numba.njit(cache=True, nogil=True, error_model="numpy",
-                      fastmath={"reassoc", "nsz", "arcp", "contract"})(fn)
+    """Reassociation and contraction (sums vectorize); NaN and inf keep their IEEE meaning
+    (no 'nnan'/'ninf'): these kernels test finiteness."""
+    return _register(fn, {"reassoc", "nsz", "arcp", "contract"})
 
 
 # ---------------------------------------------------------------------------------------------

@@ -28,7 +28,7 @@ import time
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=500)
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--blas-threads", type=int, default=1)
     ap.add_argument("--K", type=int, default=10, help="PFM-PSI highest harmonic per dimension")
     ap.add_argument("--sigma0", type=float, default=30.0, help="initial position std (m)")

@@ -95,8 +95,9 @@ _ONES: dict[int, np.ndarray] = {}
 def _ones(M: int) -> np.ndarray:
     one = _ONES.get(M)
     if one is None:
+        # writable (a read-only array would be a second compiled specialization); the kernel
+        # only reads it
         one = _ONES[M] = np.ones((M, M))
-        one.setflags(write=False)
     return one
 _NO_R = np.zeros(2)
 

@@ -196,26 +196,17 @@ def shift_blur(values: np.ndarray, spacing, coords: list[np.ndarray], D: np.ndar
     return out
 
 
-_PADDED: dict[tuple[int, int], np.ndarray] = {}
-
-
 def _shift_blur_2d(values: np.ndarray, spacing, coords: list[np.ndarray], D: np.ndarray):
-    """:func:`shift_blur` in two dimensions with fewer calls: the zero-padded input is a cached
-    buffer (only its top-left block is ever written), the FFTs are ``rfft2``/``irfft2`` on it,
-    the spline is the compiled :func:`projection_kernels.spline_shift_2d` (clipped at 0)."""
+    """:func:`shift_blur` in two dimensions with fewer calls: the FFTs are ``rfft2``/``irfft2``
+    on the zero-padded input, the spline is the compiled
+    :func:`projection_kernels.spline_shift_2d` (clipped at 0)."""
     n0, n1 = values.shape
     p0 = max(int(math.ceil(7.0 * math.sqrt(max(D[0, 0], 0.0)) / spacing[0])) + 1, SPLINE_PAD)
     p1 = max(int(math.ceil(7.0 * math.sqrt(max(D[1, 1], 0.0)) / spacing[1])) + 1, SPLINE_PAD)
     shape = (sfft.next_fast_len(n0 + min(p0, n0), real=True),
              sfft.next_fast_len(n1 + min(p1, n1), real=True))
-    buf = _PADDED.get(shape)
-    if buf is None:
-        if len(_PADDED) > 16:
-            _PADDED.clear()
-        buf = _PADDED[shape] = np.zeros(shape)
+    buf = np.zeros(shape)
     buf[:n0, :n1] = values
-    buf[n0:, :] = 0.0
-    buf[:n0, n1:] = 0.0
     X = sfft.rfft2(buf)
     a, b = _unit_frequencies(shape)
     a = a / spacing[0]
@@ -271,6 +262,7 @@ class PointMassFilter(Estimator):
         #: compiled kernels (projection_kernels) for two gridded states when Numba is there;
         #: False runs the numpy code (same results to round-off)
         self.fast: bool = bool(pk.ENABLED and n == 2)
+        self._buffers: dict[tuple[int, int], np.ndarray] = {}  # zero-padded FFT inputs
         self.kalman.fast = self.fast
         self._var = [float(v) for v in np.diag(model.R)]
         self._set_estimate()
@@ -351,11 +343,11 @@ class PointMassFilter(Estimator):
         p1 = max(int(math.ceil(7.0 * math.sqrt(max(D[1, 1], 0.0)) / sp1)) + 1, SPLINE_PAD)
         shape = (sfft.next_fast_len(n0 + min(p0, n0), real=True),
                  sfft.next_fast_len(n1 + min(p1, n1), real=True))
-        buf = _PADDED.get(shape)
+        buf = self._buffers.get(shape)  # per filter: filters in other threads have their own
         if buf is None:
-            if len(_PADDED) > 16:
-                _PADDED.clear()
-            buf = _PADDED[shape] = np.zeros(shape)
+            if len(self._buffers) > 8:
+                self._buffers.clear()
+            buf = self._buffers[shape] = np.empty(shape)
         new0, new1, c0, c1, mean, cov = pk.pm_grid_shift(
             self.values, self._axes[0], self._axes[1], self._mean, self._cov, inc.d, D,
             self.span, self._unit[0], self._unit[1], buf)

@@ -156,3 +156,17 @@ def test_environment_switch_disables_kernels():
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_interrupt_wrapped_by_a_kernel_is_recognized():
+    def wrapped():
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as inner:
+            raise SystemError("returned a result with an exception set") from inner
+
+    with pytest.raises(SystemError) as info:
+        wrapped()
+    assert pk.interrupted(info.value)
+    assert not pk.interrupted(SystemError("other"))
+    assert not pk.interrupted(ValueError("x"))

@@ -18,6 +18,7 @@ from scipy.linalg import lapack
 from uwcosim.errors import FilterDivergence, ScenarioError
 from uwcosim.filters import ESTIMATORS, Estimator
 from uwcosim.filters.numerics import check_finite
+from uwcosim.filters.projection_kernels import interrupted
 from uwcosim.master.sources import gaussian, stream
 
 _gesv = lapack.dgesv
@@ -140,6 +141,10 @@ class EstimatorBank:
             except FilterDivergence as exc:
                 tr.diverged_at = t
                 tr.error = str(exc)
+            except SystemError as exc:  # Ctrl-C while a compiled (Numba) kernel returned
+                if interrupted(exc):
+                    raise KeyboardInterrupt from None
+                raise
             tr.step_times.append(time.perf_counter() - a)
             tr.nees = self.nees(est, master) if tr.diverged_at is None else float("nan")
 

@@ -67,6 +67,19 @@ def _register(fn, fastmath):
     return first_call
 
 
+def interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` is a KeyboardInterrupt that a compiled kernel wrapped: Ctrl-C landing in
+    the Python code Numba runs while it returns arrays surfaces as a ``SystemError`` caused by
+    the ``KeyboardInterrupt`` (callers re-raise it as the interrupt it is)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def _jit_fast(fn):
     """Full fast-math (no NaN/inf assumed) for kernels that test nothing for finiteness: their
     max/min reductions vectorize; a NaN input still reaches the callers' checks downstream."""

@@ -280,7 +280,7 @@ class ProjectionFilter(Estimator):
         if kal.k:
             kal._F = Fkk
         self.m = m
-        self.basis = self.basis.moved(lo, length)
+        self.basis = self.basis.moved(lo, length, copy=False)  # fresh arrays from the kernel
         self._mean, self._cov = mean, cov
         if math.isfinite(mass) and mass > 0:  # normalized by the kernel
             self.diagnostics["prior_mass"] = mass

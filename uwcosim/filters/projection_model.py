@@ -410,6 +410,7 @@ class ConditionalKalman:
         self._k_arr = np.asarray(self.k, dtype=np.int64)
         #: compiled kernels (projection_kernels) when Numba is there; False: numpy code
         self.fast = pk.ENABLED
+        self._rows_idx = np.asarray(self.rows, dtype=np.intp)
         if self.rows:
             self.H = part.H_kalman[:, self.k]
             self.c = part.c_kalman
@@ -468,7 +469,7 @@ class ConditionalKalman:
             H, R, c = self.H, self._R, self.c
             if self.fast:
                 mean, cov, phi, nis_, ok = pk.kalman_update(self.mean, self.cov, H, R, c,
-                                                            z[rows], self._F)
+                                                            z.take(self._rows_idx), self._F)
                 if ok:
                     self.mean, self.cov, self._phi = mean, cov, phi
                     diagnostics["nis"] = nis_

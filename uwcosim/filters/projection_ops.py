@@ -106,10 +106,15 @@ class SpectralBasis:
             v = self._cache["sqrt_volume"] = math.sqrt(math.prod(self.length.tolist()))
         return v
 
-    def moved(self, lo, length) -> SpectralBasis:
+    def moved(self, lo, length, copy: bool = True) -> SpectralBasis:
+        """The same basis on another box (``copy=False``: ``lo`` and ``length`` are fresh 1-D
+        float arrays the caller hands over)."""
         new = object.__new__(SpectralBasis)  # K and M are valid: skip __post_init__'s checks
-        new.lo = np.array(lo, dtype=float).reshape(-1)
-        new.length = np.array(length, dtype=float).reshape(-1)
+        if copy:
+            new.lo = np.array(lo, dtype=float).reshape(-1)
+            new.length = np.array(length, dtype=float).reshape(-1)
+        else:
+            new.lo, new.length = lo, length
         new.K, new.M, new._cache = self.K, self.M, {}
         return new
 

@@ -11,10 +11,14 @@ the TAN model of seed 000) into a handful of compiled calls:
   as two BLAS matrix products each;
 - :func:`bayes_terms` / :func:`bayes_posterior` / :func:`posterior_coefficients`: the Bayes
   product, its moments and the re-projection of ``ProjectionFilter.update``;
-- :func:`shift_decay`: the prediction (exact re-projection and Gaussian decay) of ``predict``;
-- :func:`spline_shift_2d`: the cubic B-spline evaluation of the point-mass prediction;
-- :func:`kalman_increment` / :func:`kalman_update` / :func:`assemble`: the conditional Kalman
-  filter of the velocities and the assembly of ``(x, P)``.
+- in :mod:`uwcosim.filters.projection_kalman`: :func:`shift_decay`, the prediction (exact
+  re-projection and Gaussian decay) of ``predict``, and the conditional Kalman filter of the
+  velocities with the assembly of ``(x, P)`` (:func:`kalman_increment`, :func:`kalman_update`,
+  :func:`assemble`, and the fused :func:`predict_step` / :func:`posterior_step`);
+- in :mod:`uwcosim.filters.point_mass_kernels`: the point-mass prediction (spline shift,
+  Gaussian and prefilter symbol) and Bayes product.
+
+All are reachable from this module (the filters call ``projection_kernels.NAME``).
 
 Every kernel computes what the numpy code computes, in another summation order: results agree
 to round-off (``tests/test_projection_kernels.py`` runs both paths). Exponentials of whole
@@ -42,28 +46,38 @@ TWO_PI = 2.0 * np.pi
 
 # Numba is imported (about 0.5 s) and the kernels are bound to their compiled versions at the
 # first call of any kernel, not at import: scenarios without these filters do not pay for it.
-_PLAIN: dict[str, tuple] = {}  # name -> (python function, fastmath flags)
+# Kernels live in this module, projection_kalman and point_mass_kernels; all register here.
+_PLAIN: list[tuple] = []  # (python function, fastmath flags, first-call stub)
 
 
 def _compile_all() -> None:
+    """Compile every registered kernel (lazily: Numba compiles or loads a kernel from its
+    on-disk cache at its first call) and bind the compiled kernels wherever the modules hold
+    the first-call stubs (their own names and the names they import from each other)."""
     import numba
 
-    g = globals()
-    for name, (fn, fastmath) in _PLAIN.items():
-        g[name] = numba.njit(cache=True, nogil=True, error_model="numpy",
-                             fastmath=fastmath)(fn)
+    compiled = {}
+    spaces = {}
+    for fn, fastmath, stub in _PLAIN:
+        jit = numba.njit(cache=True, nogil=True, error_model="numpy", fastmath=fastmath)
+        compiled[id(stub)] = (stub, jit(fn))
+        spaces[id(fn.__globals__)] = fn.__globals__
+    for g in spaces.values():
+        for name, value in list(g.items()):
+            hit = compiled.get(id(value))
+            if hit is not None and hit[0] is value:
+                g[name] = hit[1]
     _PLAIN.clear()
 
 
 def _register(fn, fastmath):
-    _PLAIN[fn.__name__] = (fn, fastmath)
-
     @functools.wraps(fn)
     def first_call(*args):
         if _PLAIN:
             _compile_all()
-        return globals()[fn.__name__](*args)
+        return fn.__globals__[fn.__name__](*args)
 
+    _PLAIN.append((fn, fastmath, first_call))
     return first_call
 
 
@@ -478,6 +492,16 @@ def hermitian_normalize(m, sqrt_volume):
 
 
 @_jit
+def _sym(A):
+    n = A.shape[0]
+    out = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            out[i, j] = 0.5 * (A[i, j] + A[j, i])
+    return out
+
+
+@_jit
 def box(mean, cov, k_sigma, min_halfwidth):
     """``ProjectionFilter._box``: ``(lo, length)`` of ``mean -+ max(k_sigma sigma, floor)``."""
     n = mean.size
@@ -492,473 +516,31 @@ def box(mean, cov, k_sigma, min_halfwidth):
     return lo, length
 
 
-# ---------------------------------------------------------------------------------------------
-# PFM-PSI prediction
+# the kernels of the other two modules, reachable from here (imported last: they use the above)
+from uwcosim.filters.point_mass_kernels import (  # noqa: E402
+    grid_product_moments,
+    pm_finish,
+    pm_gauss_prefilter,
+    pm_grid_shift,
+    spline_shift_2d,
+    terrain_exponent,
+)
+from uwcosim.filters.projection_kalman import (  # noqa: E402
+    assemble,
+    available_bits,
+    kalman_increment,
+    kalman_update,
+    posterior_step,
+    predict_shift,
+    predict_step,
+    shift_decay,
+)
 
-
-@_jit
-def _transfer(K, lo, length, lo2, length2):
-    """:func:`projection_ops.transfer_matrix` (one dimension), with the phases and the sine of
-    the difference ``sin(x_i - y_j)`` separated into per-index factors."""
-    n = 2 * K + 1
-    a = max(lo, lo2)
-    w = min(lo + length, lo2 + length2) - a
-    T = np.zeros((n, n), np.complex128)
-    if w <= 0.0:
-        return T
-    c = w / math.sqrt(length * length2)
-    left = np.empty(n, np.complex128)
-    right = np.empty(n, np.complex128)
-    om = np.empty(n)
-    om2 = np.empty(n)
-    sa = np.empty(n)
-    ca = np.empty(n)
-    sb = np.empty(n)
-    cb = np.empty(n)
-    for i in range(n):
-        om2[i] = TWO_PI * (i - K) / length2
-        om[i] = TWO_PI * (i - K) / length
-        ph = -om2[i] * (a - lo2 + 0.5 * w)
-        left[i] = complex(math.cos(ph), math.sin(ph))
-        ph = om[i] * (a - lo + 0.5 * w)
-        right[i] = complex(math.cos(ph), math.sin(ph))
-        x = -0.5 * w * om2[i]
-        y = -0.5 * w * om[i]
-        sa[i], ca[i] = math.sin(x), math.cos(x)
-        sb[i], cb[i] = math.sin(y), math.cos(y)
-    for i in range(n):
-        for j in range(n):
-            delta = (om2[i] - om[j]) * (-0.5 * w)
-            if delta == 0.0:
-                s = 1.0
-            else:
-                s = (sa[i] * cb[j] - ca[i] * sb[j]) / delta
-            T[i, j] = left[i] * right[j] * (s * c)
-    return T
-
-
-@_jit
-def shift_decay(m, lo, length, lo2, length2, D, decay):
-    """Re-projection of ``m`` from the box ``(lo, length)`` onto ``(lo2, length2)`` (exact
-    integrals, :func:`projection_ops.reproject`), times ``exp(-w' D w / 2)`` on the new box
-    when ``decay`` (:func:`projection_ops.diffusion_decay`)."""
-    K = (m.shape[0] - 1) // 2
-    n = 2 * K + 1
-    T0 = _transfer(K, lo[0], length[0], lo2[0], length2[0])
-    T1 = _transfer(K, lo[1], length[1], lo2[1], length2[1])
-    # the result is Hermitian (out[-q] = conj(out[q]), as m and the transfers are): compute
-    # the rows q_0 >= 0 and mirror them
-    half = np.ascontiguousarray(T0[K:]) @ m @ np.ascontiguousarray(T1.T)
-    out = np.empty((n, n), np.complex128)
-    for i in range(K + 1):
-        a = TWO_PI * i / length2[0]
-        for j in range(n):
-            v = half[i, j]
-            if decay:
-                b = TWO_PI * (j - K) / length2[1]
-                quad = (0.5 * D[0, 0]) * (a * a) + (0.5 * D[1, 1]) * (b * b) + (D[0, 1] * a) * b
-                v *= math.exp(-quad)
-            out[K + i, j] = v
-            if i > 0:
-                out[K - i, n - 1 - j] = v.conjugate()
-    return out
-
-
-@_jit
-def predict_shift(m, lo, length, mean, cov, d, D, k_sigma, min_halfwidth):
-    """``ProjectionFilter.predict`` for a drift independent of the gridded states.
-
-    The box moves to ``box(mean + d, cov + D)``; the series is translated by ``d`` and re-projected
-    there, then decays by ``exp(-w' D w / 2)``. Returns ``(m, lo, length, mean, cov, mass)``;
-    when the mass is finite and positive, ``m`` is already made Hermitian and normalized.
-    """
-    mean2 = mean + d
-    cov2 = cov + D
-    lo2, len2 = box(mean2, cov2, k_sigma, min_halfwidth)
-    out = shift_decay(m, lo + d, length, lo2, len2, D, True)
-    K = (m.shape[0] - 1) // 2
-    mass = math.sqrt(len2[0] * len2[1]) * out[K, K].real
-    if math.isfinite(mass) and mass > 0.0:
-        mass = hermitian_normalize(out, math.sqrt(len2[0] * len2[1]))
-    return out, lo2, len2, mean2, _sym(cov2), mass
-
-
-# ---------------------------------------------------------------------------------------------
-# point mass
-
-
-@_jit
-def _spline_rows(coords, n, size):
-    """Rows of the cubic B-spline evaluation matrix of ``point_mass._spline_matrix``: indices
-    (wrapped into ``size``) and weights (zero outside ``[0, n - 1]``)."""
-    N = coords.size
-    idx = np.empty((N, 4), np.int64)
-    w = np.empty((N, 4))
-    for a in range(N):
-        c = coords[a]
-        inside = 0.0 <= c <= n - 1.0
-        if not inside:
-            c = 0.0
-        i = int(math.floor(c))
-        f = c - i
-        f2 = f * f
-        f3 = f2 * f
-        s = 1.0 if inside else 0.0
-        w[a, 0] = s * (1.0 - 3.0 * f + 3.0 * f2 - f3) / 6.0
-        w[a, 1] = s * (4.0 - 6.0 * f2 + 3.0 * f3) / 6.0
-        w[a, 2] = s * (1.0 + 3.0 * f + 3.0 * f2 - 3.0 * f3) / 6.0
-        w[a, 3] = s * f3 / 6.0
-        for t in range(4):
-            idx[a, t] = (i - 1 + t) % size
-    return idx, w
-
-
-@_jit
-def spline_shift_2d(X, coords0, coords1, n0, n1):
-    """Cubic B-spline of the prefiltered periodic coefficients ``X`` at the fractional grid
-    coordinates ``coords0 x coords1`` (zero outside the old ``n0 x n1`` grid), clipped at 0.
-
-    Both passes combine whole contiguous rows (the second one on the transpose), so that the
-    inner loops vectorize instead of gathering."""
-    i0, w0 = _spline_rows(coords0, n0, X.shape[0])
-    i1, w1 = _spline_rows(coords1, n1, X.shape[1])
-    N0, N1, S1 = coords0.size, coords1.size, X.shape[1]
-    rows = np.empty((N0, S1))
-    for a in range(N0):
-        r0, r1, r2, r3 = i0[a, 0], i0[a, 1], i0[a, 2], i0[a, 3]
-        u0, u1, u2, u3 = w0[a, 0], w0[a, 1], w0[a, 2], w0[a, 3]
-        for c in range(S1):
-            rows[a, c] = u0 * X[r0, c] + u1 * X[r1, c] + u2 * X[r2, c] + u3 * X[r3, c]
-    rowsT = np.ascontiguousarray(rows.T)  # (S1, N0)
-    outT = np.empty((N1, N0))
-    for b in range(N1):
-        r0, r1, r2, r3 = i1[b, 0], i1[b, 1], i1[b, 2], i1[b, 3]
-        u0, u1, u2, u3 = w1[b, 0], w1[b, 1], w1[b, 2], w1[b, 3]
-        for a in range(N0):
-            v = u0 * rowsT[r0, a] + u1 * rowsT[r1, a] + u2 * rowsT[r2, a] + u3 * rowsT[r3, a]
-            outT[b, a] = max(v, 0.0)
-    return np.ascontiguousarray(outT.T)
-
-
-@_jit
-def pm_grid_shift(values, ax0, ax1, mean, cov, d, D, span, unit0, unit1, buf):
-    """First part of the point-mass prediction (drift independent of the grid).
-
-    The new grid ``mean + d -+ span sigma`` (``sigma`` from ``cov + D``;
-    ``PointMassFilter._grid``), the fractional coordinates on the old grid of its points
-    pulled back by ``d``, and ``values`` copied into the top-left block of the zero-padded
-    FFT buffer ``buf``. Returns
-    ``(new0, new1, coords0, coords1, mean, cov)`` (the predicted moments: exact for a
-    translation and a Gaussian convolution)."""
-    mean2 = mean + d
-    cov2 = cov + D
-    out = []
-    for k in range(2):
-        sig = math.sqrt(max(cov2[k, k], 0.0))
-        half = max(span * sig, 1e-9 * max(1.0, abs(mean2[k])))
-        u = unit0 if k == 0 else unit1
-        a = u * half
-        a += mean2[k]
-        out.append(a)
-    new0, new1 = out[0], out[1]
-    sp0 = ax0[1] - ax0[0]
-    sp1 = ax1[1] - ax1[0]
-    c0 = (new0 - d[0] - ax0[0]) / sp0
-    c1 = (new1 - d[1] - ax1[0]) / sp1
-    n0, n1 = values.shape
-    for i in range(buf.shape[0]):
-        for j in range(buf.shape[1]):
-            buf[i, j] = values[i, j] if (i < n0 and j < n1) else 0.0
-    return new0, new1, c0, c1, mean2, _sym(cov2)
-
-
-@_jit
-def pm_gauss_prefilter(X, L1, sp0, sp1, D, col, row):
-    """``X *= exp(-w' D w / 2) * prefilter`` on a real-FFT spectrum (two dimensions, grid
-    spacings ``sp0``, ``sp1``, padded length ``L1`` of the last axis): the diagonal factors
-    per index, the cross term ``exp(-D01 a_i b_j) = q_i^j`` (``b_j = j b_1`` on the last,
-    real-FFT axis) by powers."""
-    N0, N1 = X.shape
-    b1 = TWO_PI / L1 / sp1
-    eb = np.empty(N1)
-    for j in range(N1):
-        b = j * b1
-        eb[j] = math.exp(-0.5 * D[1, 1] * b * b) * row[0, j]
-    for i in range(N0):
-        k = i if i < (N0 + 1) // 2 else i - N0
-        a = TWO_PI * k / N0 / sp0
-        ea = math.exp(-0.5 * D[0, 0] * a * a) * col[i, 0]
-        q = math.exp(-D[0, 1] * a * b1)
-        p = 1.0
-        for j in range(N1):
-            X[i, j] *= ea * eb[j] * p
-            p *= q
-
-
-@_jit
-def pm_finish(X, coords0, coords1, n0, n1, cell):
-    """Spline at the shifted points (clipped at 0) and normalization: ``(values, mass)``;
-    ``values`` are divided by the mass when it is finite and positive."""
-    out = spline_shift_2d(X, coords0, coords1, n0, n1)
-    mass = out.sum() * cell
-    if math.isfinite(mass) and mass > 0.0:
-        out /= mass
-    return out, mass
-
-
-@_jit_fast
-def terrain_exponent(xs, ys, C, tpar, ipar, z, var):
-    """``ll - max(ll)`` of the terrain row, ``ll = -(h - z)^2 / (2 var)``, and ``max(ll)``
-    (map as in :func:`bayes_terms`)."""
-    h = terrain_depth(xs, ys, C, tpar[0], tpar[1], tpar[2], tpar[3], ipar[0], ipar[1],
-                      ipar[2])
-    tmax = -np.inf
-    for i in range(h.shape[0]):
-        for j in range(h.shape[1]):
-            e = h[i, j] - z
-            t = -0.5 * (e * e) / var
-            h[i, j] = t
-            tmax = max(tmax, t)
-    h -= tmax
-    return h, tmax
-
-
-@_jit
-def grid_product_moments(values, lik, cell, xs, ys):
-    """``post = values * lik`` normalized, its mass ``Z`` and moments (point-mass update).
-
-    When the mass is not finite and positive, ``post`` is ``values`` unchanged (the update is
-    skipped, ``Z`` is returned for the caller to report)."""
-    Mx, My = values.shape
-    post = np.empty((Mx, My))
-    m0 = np.zeros(Mx)
-    m1 = np.zeros(My)
-    for i in range(Mx):
-        acc = 0.0
-        for j in range(My):
-            p = values[i, j] * lik[i, j]
-            post[i, j] = p
-            acc += p
-            m1[j] += p
-        m0[i] = acc
-    Z = m0.sum() * cell
-    if math.isfinite(Z) and Z > 0.0:
-        post /= Z
-        m0 /= Z
-        m1 /= Z
-        mean, cov = _moments2_marginals(post, m0, m1, xs, ys)
-    else:
-        post = values
-        mean, cov = _moments2(post, xs, ys, False)
-    return post, Z, mean, cov
-
-
-@_jit
-def available_bits(z, mask, use):
-    """Bit ``r`` set when ``z[r]`` is finite and ``mask[r]`` and ``use[r]`` (``split_rows``)."""
-    bits = 0
-    for r in range(z.size):
-        if mask[r] and use[r] and math.isfinite(z[r]):
-            bits |= 1 << r
-    return bits
-
-
-# ---------------------------------------------------------------------------------------------
-# conditional Kalman filter of the velocities and (x, P)
-
-
-@_jit
-def _chol_ok(S):
-    """Whether the symmetric ``S`` (lower triangle) is positive definite (Cholesky)."""
-    n = S.shape[0]
-    L = np.zeros((n, n))
-    for j in range(n):
-        d = S[j, j]
-        for k in range(j):
-            d -= L[j, k] * L[j, k]
-        if not d > 0.0:
-            return False
-        L[j, j] = math.sqrt(d)
-        for i in range(j + 1, n):
-            v = S[i, j]
-            for k in range(j):
-                v -= L[i, k] * L[j, k]
-            L[i, j] = v / L[j, j]
-    return True
-
-
-@_jit
-def _solve(A, B):
-    """``A^-1 B`` by Gaussian elimination with partial pivoting (as LAPACK gesv); ``ok``."""
-    n = A.shape[0]
-    A = A.copy()
-    X = B.copy()
-    for c in range(n):
-        p = c
-        for r in range(c + 1, n):
-            if abs(A[r, c]) > abs(A[p, c]):
-                p = r
-        if A[p, c] == 0.0:
-            return X, False
-        if p != c:
-            for k in range(n):
-                A[c, k], A[p, k] = A[p, k], A[c, k]
-            for k in range(X.shape[1]):
-                X[c, k], X[p, k] = X[p, k], X[c, k]
-        for r in range(c + 1, n):
-            f = A[r, c] / A[c, c]
-            for k in range(c, n):
-                A[r, k] -= f * A[c, k]
-            for k in range(X.shape[1]):
-                X[r, k] -= f * X[c, k]
-    for c in range(n - 1, -1, -1):
-        for k in range(X.shape[1]):
-            v = X[c, k]
-            for j in range(c + 1, n):
-                v -= A[c, j] * X[j, k]
-            X[c, k] = v / A[c, c]
-    return X, True
-
-
-@_jit
-def _sym(A):
-    n = A.shape[0]
-    out = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            out[i, j] = 0.5 * (A[i, j] + A[j, i])
-    return out
-
-
-@_jit
-def _mm(A, B):
-    """``A @ B`` by loops (tiny matrices: cheaper than a BLAS call)."""
-    n, m, p = A.shape[0], A.shape[1], B.shape[1]
-    out = np.zeros((n, p))
-    for i in range(n):
-        for k in range(m):
-            a = A[i, k]
-            for j in range(p):
-                out[i, j] += a * B[k, j]
-    return out
-
-
-@_jit
-def _mv(A, x):
-    out = np.zeros(A.shape[0])
-    for i in range(A.shape[0]):
-        for k in range(A.shape[1]):
-            out[i] += A[i, k] * x[k]
-    return out
-
-
-@_jit
-def kalman_increment(x, fx, F, Q, p, k, cov, phi, use_phi):
-    """:meth:`ConditionalKalman.increment` after the model call: ``(d, D, Dk, mean, cov)``."""
-    npp, nk = p.size, k.size
-    d = np.empty(npp)
-    D = np.empty((npp, npp))
-    for a in range(npp):
-        d[a] = fx[p[a]] - x[p[a]]
-        for b in range(npp):
-            D[a, b] = Q[p[a], p[b]]
-    Dk = np.zeros((npp, npp))
-    mean = np.empty(nk)
-    new_cov = cov
-    if nk:
-        S = cov
-        if use_phi:
-            eye = np.eye(nk)
-            X, ok = _solve(eye - phi, cov)
-            if ok:
-                S2 = _sym(X + X.T - cov)
-                tr, trP = 0.0, 0.0
-                for a in range(nk):
-                    tr += S2[a, a]
-                    trP += cov[a, a]
-                if (math.isfinite(S2.sum()) and not tr > 1e6 * max(trP, 1e-300)
-                        and _chol_ok(S2)):
-                    S = S2
-        Fpk = np.empty((npp, nk))
-        Fkk = np.empty((nk, nk))
-        Qkk = np.empty((nk, nk))
-        for a in range(npp):
-            for b in range(nk):
-                Fpk[a, b] = F[p[a], k[b]]
-        for a in range(nk):
-            mean[a] = fx[k[a]]
-            for b in range(nk):
-                Fkk[a, b] = F[k[a], k[b]]
-                Qkk[a, b] = Q[k[a], k[b]]
-        Dk = _sym(_mm(_mm(Fpk, S), Fpk.T))
-        new_cov = _sym(_mm(_mm(Fkk, cov), Fkk.T) + Qkk)
-        D = D + Dk
-    return d, _sym(D), Dk, mean, new_cov
-
-
-@_jit
-def kalman_update(mean, cov, H, R, c, y_meas, F):
-    """Joseph-form update of the ``k`` block: ``(mean, cov, phi, nis, ok)``; ``ok`` False when
-    ``S`` is not positive definite (the caller then runs the repairing numpy path)."""
-    y = y_meas - (_mv(H, mean) + c)
-    PHt = _mm(cov, H.T)
-    S = _sym(_mm(H, PHt) + R)
-    if not _chol_ok(S):
-        return mean, cov, F, 0.0, False
-    Sinv_y, _ = _solve(S, y.reshape(-1, 1))
-    Kt, _ = _solve(S, PHt.T.copy())
-    K = Kt.T.copy()
-    nis = 0.0
-    for a in range(y.size):
-        nis += y[a] * Sinv_y[a, 0]
-    new_mean = mean + _mv(K, y)
-    IKH = np.eye(mean.size) - _mm(K, H)
-    new_cov = _sym(_mm(_mm(IKH, cov), IKH.T) + _mm(_mm(K, R), K.T))
-    return new_mean, new_cov, _mm(IKH, F), nis, True
-
-
-@_jit
-def assemble(nx, p, k, mean_p, cov_p, mean_k, cov_k):
-    """``(x, P, finite)`` of a partitioned filter (:func:`assemble_estimate`)."""
-    x = np.zeros(nx)
-    P = np.zeros((nx, nx))
-    for a in range(p.size):
-        x[p[a]] = mean_p[a]
-        for b in range(p.size):
-            P[p[a], p[b]] = cov_p[a, b]
-    for a in range(k.size):
-        x[k[a]] = mean_k[a]
-        for b in range(k.size):
-            P[k[a], k[b]] = cov_k[a, b]
-    finite = math.isfinite(x.sum() + P.sum())
-    return x, _sym(P), finite
-
-
-@_jit
-def predict_step(x, fx, F, Q, p, k, kcov, phi, use_phi, m, lo, length, mean, cov, k_sigma,
-                 min_halfwidth):
-    """One ``ProjectionFilter.predict`` (drift independent of the gridded states) after the
-    model call ``(fx, F, Q)``: :func:`kalman_increment`, :func:`predict_shift` and
-    :func:`assemble` in one call. Returns ``(m, lo, length, mean, cov, mass, kmean, kcov, Fkk,
-    x, P, finite)``."""
-    d, D, _, kmean, kcov2 = kalman_increment(x, fx, F, Q, p, k, kcov, phi, use_phi)
-    m2, lo2, len2, mean2, cov2, mass = predict_shift(m, lo, length, mean, cov, d, D, k_sigma,
-                                                     min_halfwidth)
-    Fkk = np.empty((k.size, k.size))
-    for a in range(k.size):
-        for b in range(k.size):
-            Fkk[a, b] = F[k[a], k[b]]
-    x2, P2, finite = assemble(x.size, p, k, mean2, cov2, kmean, kcov2)
-    return m2, lo2, len2, mean2, cov2, mass, kmean, kcov2, Fkk, x2, P2, finite
-
-
-@_jit
-def posterior_step(post, Tg, Tm, Tq, Tx, length, neg_limit, nx, p, k, mean, cov, kmean, kcov):
-    """:func:`posterior_coefficients` and, when the series needs no repair, :func:`assemble`
-    of ``(x, P)`` from the posterior moments: ``(m, values, neg, mass, x, P, finite)``."""
-    m, values, neg, mass = posterior_coefficients(post, Tg, Tm, Tq, Tx, length, neg_limit)
-    if math.isfinite(mass) and mass > 0.0:
-        x, P, finite = assemble(nx, p, k, mean, cov, kmean, kcov)
-    else:
-        x, P, finite = np.zeros(nx), np.zeros((nx, nx)), False
-    return m, values, neg, mass, x, P, finite
+__all__ = [
+    "ENABLED", "assemble", "available_bits", "bayes_posterior", "bayes_terms", "box",
+    "from_grid2", "grid_moments2", "grid_product_moments", "hermitian_normalize", "interrupted",
+    "kalman_increment", "kalman_update", "moments2", "pm_finish", "pm_gauss_prefilter",
+    "pm_grid_shift", "posterior_coefficients", "posterior_step", "predict_shift",
+    "predict_step", "prior_values", "shift_decay", "spline_shift_2d", "tables", "terrain_depth",
+    "terrain_exponent", "to_grid2",
+]

@@ -228,6 +228,9 @@ def _cmd_campaign(args) -> int:
     for f in summary.get("failed", []):
         print(f"failed: {f['variant']} run {f['run']}: {f['error']}", file=sys.stderr)
     print(f"{summary['runs']} runs in {out} ({summary['wall_time_s']:.1f} s)")
+    from uwcosim.campaign.execute import session_line
+
+    print(session_line(out))
     return 1 if summary.get("failed") else 0
 
 

@@ -24,6 +24,8 @@ import numpy as np
 from uwcosim.errors import FilterDivergence, ScenarioError
 from uwcosim.evaluation.metrics import nees
 from uwcosim.filters import Estimator
+from uwcosim.filters.numerics import check_finite
+from uwcosim.filters.projection_kernels import interrupted
 from uwcosim.master.sources import stream
 
 if TYPE_CHECKING:
@@ -110,11 +112,14 @@ class EstimatorBank:
                 z_in, mask = tr.policy(t, z, rec & tr.use)
                 mask = np.asarray(mask, dtype=bool) & tr.use
                 est.update(z_in if mask.any() else None, mask)
-                if not (np.all(np.isfinite(est.x)) and np.all(np.isfinite(est.P))):
-                    raise FilterDivergence("estimate contains NaN or inf")
+                check_finite("estimate", est.x, est.P)
             except FilterDivergence as exc:
                 tr.diverged_at = t
                 tr.error = str(exc)
+            except SystemError as exc:  # Ctrl-C while a compiled (Numba) kernel returned
+                if interrupted(exc):
+                    raise KeyboardInterrupt from None
+                raise
             tr.step_times.append(time.perf_counter() - a)
             if tr.diverged_at is None:
                 tr.nees = self.nees(est, master)

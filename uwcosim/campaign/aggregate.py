@@ -68,6 +68,29 @@ def aggregate(rows: list[dict]) -> list[dict]:
     return out
 
 
+def resource_lines(records: list[dict]) -> list[str]:
+    """Peak RSS per campaign worker and the mean wall time of a run (for ``table.md``)."""
+    rss: dict[int, float] = {}
+    walls = []
+    for r in records:
+        if "peak_rss_mb" in r:
+            w = int(r.get("worker", 0))
+            rss[w] = max(rss.get(w, 0.0), float(r["peak_rss_mb"]))
+        if "wall_s" in r:
+            walls.append(float(r["wall_s"]))
+    if not rss and not walls:
+        return []
+    out = [""]
+    if rss:
+        out.append(f"Peak RSS per worker process: max {max(rss.values()):.0f} MB, "
+                   f"median {float(np.median(list(rss.values()))):.0f} MB "
+                   f"({len(rss)} worker processes).")
+    if walls:
+        out.append(f"Wall time of a run (co-simulation, filters, log): mean "
+                   f"{float(np.mean(walls)):.2f} s over {len(walls)} runs.")
+    return out
+
+
 def write_tables(agg: list[dict], out: Path) -> tuple[Path, Path]:
     md = out / "table.md"
     lines = ["| variant | estimator | runs | pos. RMSE (m) | x RMSE (m) | y RMSE (m) | vx RMSE "
@@ -79,6 +102,7 @@ def write_tables(agg: list[dict], out: Path) -> tuple[Path, Path]:
             f"± {r['rmse_position_std_m']:.2f} | {r['rmse_x_m']:.2f} | {r['rmse_y_m']:.2f} | "
             f"{r['rmse_vx_mps']:.4f} | {r['rmse_vy_mps']:.4f} | {r['anees']:.2f} | "
             f"{r['total_time_s']:.2f} | {r['diverged']} |")
+    lines += resource_lines(read_records(out / "results"))
     md.write_text("\n".join(lines) + "\n")
     path_csv = out / "table.csv"
     with open(path_csv, "w", newline="") as fh:

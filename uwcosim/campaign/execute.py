@@ -16,6 +16,7 @@ import os
 import shutil
 import sys
 import tempfile
+import time
 import traceback
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -55,6 +56,7 @@ def execute_run(task: Task) -> dict:
 
     record = {"variant": task.variant, "run": task.run, "seed": task.seed, "status": "ok",
               "error": "", "estimators": {}}
+    started = (time.perf_counter(), time.process_time())
     tmp = None
     try:
         key = (task.scenario, task.overrides)
@@ -91,6 +93,7 @@ def execute_run(task: Task) -> dict:
     finally:
         if tmp:
             shutil.rmtree(tmp, ignore_errors=True)
+    record.update(_resources(started))
     return record
 
 
@@ -119,6 +122,23 @@ def _worker_init(parent: int) -> None:
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(s, signal.SIG_IGN)
     die_with_parent(parent)
+
+
+def _resources(started: tuple[float, float]) -> dict:
+    """Wall and CPU time of the run, the worker process's peak resident memory so far (MB).
+
+    The CPU time is what the run costs on a core of its own (the wall time also counts waiting
+    for the CPU on a loaded machine)."""
+    out = {"wall_s": time.perf_counter() - started[0], "cpu_s": time.process_time() - started[1],
+           "worker": os.getpid()}
+    try:
+        import resource
+
+        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # kB on Linux, B on macOS
+        out["peak_rss_mb"] = rss / (1024 * 1024 if sys.platform == "darwin" else 1024)
+    except (ImportError, OSError):  # pragma: no cover - not on Windows
+        pass
+    return out
 
 
 def _write(results: Path, task: Task, record: dict) -> None:
@@ -174,10 +194,63 @@ def _progress(total: int, initial: int):
     try:
         from tqdm import tqdm
 
+        # smoothing 0: tqdm's own rate and remaining time are this session's average
         return tqdm(total=total, initial=initial, unit="run", file=sys.stderr,
-                    dynamic_ncols=True, smoothing=0.1)
+                    dynamic_ncols=True, smoothing=0.0)
     except ImportError:  # pragma: no cover - tqdm is a dependency
         return None
+
+
+class SessionStats:
+    """Cost of the runs finished in this session: per-run wall time, filter time, peak RSS.
+
+    The ETA is the remaining run count times the measured per-run cost divided by the measured
+    parallelism (sum of run wall times over elapsed time: the number of runs in flight, which
+    also holds on a Dask cluster of unknown size)."""
+
+    def __init__(self, remaining: int) -> None:
+        self.start = time.perf_counter()
+        self.remaining = remaining
+        self.runs = 0
+        self.run_wall_s = 0.0
+        self.filter_s = 0.0
+        self.peak_rss_mb = 0.0
+
+    def add(self, record: dict) -> None:
+        self.runs += 1
+        self.remaining -= 1
+        self.run_wall_s += float(record.get("wall_s", 0.0))
+        self.filter_s += sum(float(m.get("total_time_s", 0.0))
+                             for m in record.get("estimators", {}).values())
+        self.peak_rss_mb = max(self.peak_rss_mb, float(record.get("peak_rss_mb", 0.0)))
+
+    @property
+    def elapsed(self) -> float:
+        return time.perf_counter() - self.start
+
+    def eta_s(self) -> float | None:
+        if not self.runs or self.elapsed <= 0:
+            return None
+        per_run = self.run_wall_s / self.runs
+        parallel = max(self.run_wall_s / self.elapsed, 1e-9)
+        return self.remaining * per_run / parallel
+
+    def summary(self) -> dict:
+        wall = self.elapsed
+        return {
+            "runs_this_session": self.runs, "wall_time_s": wall,
+            "runs_per_s": self.runs / wall if wall > 0 else float("nan"),
+            "mean_run_wall_s": self.run_wall_s / self.runs if self.runs else float("nan"),
+            "filter_share": self.filter_s / self.run_wall_s if self.run_wall_s else float("nan"),
+            "peak_rss_mb": self.peak_rss_mb,
+        }
+
+
+def _eta_text(seconds: float | None) -> str:
+    if seconds is None:
+        return "?"
+    m, s = divmod(int(round(seconds)), 60)
+    return f"{m // 60}:{m % 60:02d}:{s:02d}" if m >= 60 else f"{m}:{s:02d}"
 
 
 def run_tasks(tasks: list[Task], results: Path, workers: int, scheduler: str | None,
@@ -186,16 +259,19 @@ def run_tasks(tasks: list[Task], results: Path, workers: int, scheduler: str | N
     results.mkdir(parents=True, exist_ok=True)
     bar = _progress(total, total - len(tasks))
     failures = 0
+    stats = SessionStats(len(tasks))
 
     def done(task: Task, record: dict) -> None:
         nonlocal failures
         _write(results, task, record)
         failures += record["status"] != "ok"
+        stats.add(record)
         if on_record:
             on_record(record)
         if bar is not None:
             bar.update(1)
-            bar.set_postfix(failed=failures)
+            bar.set_postfix(failed=failures, eta=_eta_text(stats.eta_s()),
+                            per_run=f"{stats.run_wall_s / stats.runs:.1f}s")
 
     try:
         for task, record in _iterate(tasks, workers, scheduler):
@@ -203,7 +279,29 @@ def run_tasks(tasks: list[Task], results: Path, workers: int, scheduler: str | N
     finally:
         if bar is not None:
             bar.close()
+        write_session(results.parent, stats)
     return failures
+
+
+def session_line(out: Path) -> str:
+    """One line from ``session.json`` (printed at the end of ``uwcosim campaign``)."""
+    try:
+        s = json.loads((Path(out) / "session.json").read_text())
+    except (OSError, ValueError):
+        return "no run finished in this session"
+    if not s.get("runs_this_session"):
+        return "no run finished in this session"
+    return (f"this session: {s['runs_this_session']} runs in {s['wall_time_s']:.1f} s = "
+            f"{s['runs_per_s']:.3f} runs/s ({s['mean_run_wall_s']:.2f} s per run and worker); "
+            f"filters {100 * s['filter_share']:.0f}% of the run time; peak RSS "
+            f"{s['peak_rss_mb']:.0f} MB per worker")
+
+
+def write_session(out: Path, stats: SessionStats) -> Path:
+    """``session.json``: runs/s, filter share and peak RSS of this session's runs."""
+    path = out / "session.json"
+    path.write_text(json.dumps(stats.summary(), indent=2, sort_keys=True))
+    return path
 
 
 def _iterate(tasks: list[Task], workers: int, scheduler: str | None) -> Iterable:

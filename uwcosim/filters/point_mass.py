@@ -23,6 +23,7 @@ The update multiplies by the likelihood on the grid (:class:`GridLikelihood`). S
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
@@ -30,6 +31,7 @@ import scipy.fft as sfft
 from scipy import ndimage, sparse
 
 from uwcosim.errors import FilterDivergence
+from uwcosim.filters import projection_kernels as pk
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.numerics import symmetrize
 from uwcosim.filters.projection_likelihood import GridLikelihood
@@ -146,16 +148,20 @@ def _spline_matrix(coords: np.ndarray, n: int, size: int) -> sparse.csr_matrix:
     return B
 
 
-def shift_blur(values: np.ndarray, spacing, coords: list[np.ndarray], D: np.ndarray):
+def shift_blur(values: np.ndarray, spacing, coords: list[np.ndarray], D: np.ndarray,
+               fast: bool = False):
     """Prediction of a drift independent of the grid: ``(p * N(0, D))`` at shifted points.
 
     One zero-padded real FFT: the Gaussian ``exp(-w' D w / 2)`` and the cubic B-spline
     prefilter are applied together, then the spline is evaluated at the fractional grid
     coordinates ``coords`` (one array per axis, in units of the old spacing; zero outside the
-    old grid) by one sparse banded matrix per axis.
+    old grid) by one sparse banded matrix per axis. ``fast`` (two dimensions): the spline by the
+    compiled kernel :func:`projection_kernels.spline_shift_2d`, which also clips at 0.
     """
     n = values.ndim
     D = np.asarray(D, dtype=float)
+    if fast and n == 2:
+        return _shift_blur_2d(values, spacing, coords, D)
     sig = np.sqrt(np.maximum(np.diag(D), 0.0))
     pads = [max(int(np.ceil(7.0 * sig[d] / spacing[d])) + 1, SPLINE_PAD) for d in range(n)]
     shape = tuple(
@@ -192,6 +198,30 @@ def shift_blur(values: np.ndarray, spacing, coords: list[np.ndarray], D: np.ndar
 
 #: largest grid memory (bytes) a point-mass filter may ask for
 MAX_GRID_BYTES = 4 * 2**30
+
+
+def _shift_blur_2d(values: np.ndarray, spacing, coords: list[np.ndarray], D: np.ndarray):
+    """:func:`shift_blur` in two dimensions with fewer calls: the FFTs are ``rfft2``/``irfft2``
+    on the zero-padded input, the spline is the compiled
+    :func:`projection_kernels.spline_shift_2d` (clipped at 0)."""
+    n0, n1 = values.shape
+    p0 = max(int(math.ceil(7.0 * math.sqrt(max(D[0, 0], 0.0)) / spacing[0])) + 1, SPLINE_PAD)
+    p1 = max(int(math.ceil(7.0 * math.sqrt(max(D[1, 1], 0.0)) / spacing[1])) + 1, SPLINE_PAD)
+    shape = (sfft.next_fast_len(n0 + min(p0, n0), real=True),
+             sfft.next_fast_len(n1 + min(p1, n1), real=True))
+    buf = np.zeros(shape)
+    buf[:n0, :n1] = values
+    X = sfft.rfft2(buf)
+    a, b = _unit_frequencies(shape)
+    a = a / spacing[0]
+    b = b / spacing[1]
+    kern = np.exp((-D[0, 1] * a) * b)
+    col, row = _inverse_bspline_factors(shape)
+    kern *= np.exp((-0.5 * D[0, 0]) * a * a) * col
+    kern *= np.exp((-0.5 * D[1, 1]) * b * b) * row
+    X *= kern
+    out = sfft.irfft2(X, s=shape)
+    return pk.spline_shift_2d(out, coords[0], coords[1], n0, n1)
 
 
 @register("point_mass")
@@ -237,6 +267,12 @@ class PointMassFilter(Estimator):
         self._normalize()
         self._mean, self._cov = mean, cov
         self._after_update = False
+        #: compiled kernels (projection_kernels) for two gridded states when Numba is there;
+        #: False runs the numpy code (same results to round-off)
+        self.fast: bool = bool(pk.ENABLED and n == 2)
+        self._buffers: dict[tuple[int, int], np.ndarray] = {}  # zero-padded FFT inputs
+        self.kalman.fast = self.fast
+        self._var = [float(v) for v in np.diag(model.R)]
         self._set_estimate()
 
     # ------------------------------------------------------------------------------------------
@@ -257,8 +293,9 @@ class PointMassFilter(Estimator):
     @axes.setter
     def axes(self, axes: list[np.ndarray]) -> None:
         self._axes = axes
-        self._spacing = np.array([a[1] - a[0] for a in axes])
-        self._cell = float(np.prod(self._spacing))
+        spacing = [float(a[1] - a[0]) for a in axes]
+        self._spacing = np.array(spacing)
+        self._cell = math.prod(spacing)
 
     @property
     def spacing(self) -> np.ndarray:
@@ -285,12 +322,14 @@ class PointMassFilter(Estimator):
         self._after_update = False
         u = np.asarray(u, dtype=float).reshape(-1)
         inc = self.kalman.increment(self.x, u, dt)
-        if self.part.drift_constant:
+        if self.part.drift_constant and self.fast:
+            self._predict_shift_fast(inc)
+        elif self.part.drift_constant:
             new = self._grid(self._mean + inc.d, self._cov + inc.D)
             old = self.spacing
             coords = [(new[d] - inc.d[d] - self.axes[d][0]) / old[d] for d in range(len(new))]
-            vals = shift_blur(self.values, old, coords, inc.D)
-            self.values = np.maximum(vals, 0.0, out=vals)
+            vals = shift_blur(self.values, old, coords, inc.D, self.fast)
+            self.values = vals if self.fast else np.maximum(vals, 0.0, out=vals)
             self.axes = new
             self._normalize(clip=False)
             # translation and Gaussian convolution: the moments propagate exactly
@@ -300,6 +339,35 @@ class PointMassFilter(Estimator):
             self._normalize()
             self._mean, self._cov = axes_moments(self.axes, self.values)
         self._set_estimate()
+
+    def _predict_shift_fast(self, inc) -> None:
+        """The drift-independent prediction (:func:`shift_blur` and the moments) in three
+        compiled kernels around the two FFTs."""
+        D = inc.D
+        sp0, sp1 = self._spacing.tolist()
+        n0, n1 = self.values.shape
+        p0 = max(int(math.ceil(7.0 * math.sqrt(max(D[0, 0], 0.0)) / sp0)) + 1, SPLINE_PAD)
+        p1 = max(int(math.ceil(7.0 * math.sqrt(max(D[1, 1], 0.0)) / sp1)) + 1, SPLINE_PAD)
+        shape = (sfft.next_fast_len(n0 + min(p0, n0), real=True),
+                 sfft.next_fast_len(n1 + min(p1, n1), real=True))
+        buf = self._buffers.get(shape)  # per filter: filters in other threads have their own
+        if buf is None:
+            if len(self._buffers) > 8:
+                self._buffers.clear()
+            buf = self._buffers[shape] = np.empty(shape)
+        new0, new1, c0, c1, mean, cov = pk.pm_grid_shift(
+            self.values, self._axes[0], self._axes[1], self._mean, self._cov, inc.d, D,
+            self.span, self._unit[0], self._unit[1], buf)
+        X = sfft.rfft2(buf)
+        col, row = _inverse_bspline_factors(shape)
+        pk.pm_gauss_prefilter(X, shape[1], sp0, sp1, D, col, row)
+        out = sfft.irfft2(X, s=shape)
+        self.axes = [new0, new1]
+        self.values, mass = pk.pm_finish(out, c0, c1, n0, n1, self._cell)
+        if not (math.isfinite(mass) and mass > 0):
+            self.diverged = True
+            raise FilterDivergence(f"{self.kind}: grid density lost its mass ({mass})")
+        self._mean, self._cov = mean, cov
 
     def _chapman_kolmogorov(self, u, dt: float, inc) -> None:
         p = self.part.p
@@ -352,6 +420,22 @@ class PointMassFilter(Estimator):
         self._after_update = True
         z, rows_k, rows_g = self.part.split_rows(z, mask, self.model.nz)
         self.kalman.update(self.x, z, rows_k, self.diagnostics)
+        if rows_g and self.fast and len(rows_g) == 1 and rows_g[0] in self.likelihood.terrain_rows:
+            r = rows_g[0]
+            tg = self.likelihood.terrain_rows[r]
+            ax = self.axes
+            E, llmax = pk.terrain_exponent(ax[0], ax[1], tg.t.coefficients, tg.tpar, tg.ipar,
+                                           float(z[r]), self._var[r])
+            np.exp(E, out=E)
+            post, Z, self._mean, self._cov = pk.grid_product_moments(self.values, E, self._cell,
+                                                                     ax[0], ax[1])
+            if math.isfinite(Z) and Z > 0:
+                self.values = post
+                self.diagnostics["loglik"] = math.log(Z) + llmax
+            else:
+                self.diagnostics["update_skipped"] = 1.0
+            self._finish_update()
+            return
         if rows_g:
             post = self.likelihood.loglik(self.axes, z, rows_g, self.x)
             llmax = float(post.max())
@@ -365,7 +449,13 @@ class PointMassFilter(Estimator):
                 self.diagnostics["loglik"] = float(np.log(Z) + llmax)
             else:
                 self.diagnostics["update_skipped"] = 1.0
-        self._mean, self._cov = axes_moments(self.axes, self.values)
+        if self.fast:
+            self._mean, self._cov = pk.moments2(self.values, self.axes[0], self.axes[1])
+        else:
+            self._mean, self._cov = axes_moments(self.axes, self.values)
+        self._finish_update()
+
+    def _finish_update(self) -> None:
         self._set_estimate()
         d = self.diagnostics
         d["n_points"] = float(self.values.size)

@@ -73,6 +73,7 @@ from scipy.linalg import expm
 from scipy.sparse.linalg import expm_multiply
 
 from uwcosim.errors import FilterDivergence
+from uwcosim.filters import projection_kernels as pk
 from uwcosim.filters import projection_ops as po
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.numerics import cholesky, symmetrize
@@ -87,6 +88,18 @@ from uwcosim.filters.projection_model import (
 POSITIVITY = ("auto", "none", "threshold", "clip", "product", "jackson")
 DENSE_EXPM_MAX = 1200  # basis size up to which exp(A dt) is formed densely
 REGROW = (2.0, 4.0, 8.0, 16.0)  # prior std inflations tried when the box holds no posterior
+_NO_D = np.zeros((2, 2))
+_ONES: dict[int, np.ndarray] = {}
+
+
+def _ones(M: int) -> np.ndarray:
+    one = _ONES.get(M)
+    if one is None:
+        # writable (a read-only array would be a second compiled specialization); the kernel
+        # only reads it
+        one = _ONES[M] = np.ones((M, M))
+    return one
+_NO_R = np.zeros(2)
 
 
 
@@ -131,9 +144,11 @@ class ProjectionFilter(Estimator):
         self.moment_match = bool(moment_match)
         self.gate = float(gate)
         self._gate_ll: dict[tuple, float] = {}
+        self.fast = False  # set below, once the basis is known
         self.part = Partition(model, states, measurements)
         self.kalman = ConditionalKalman(model, self.part, self.x, self.P, long_run)
         self.likelihood = GridLikelihood(model, self.part)
+        self._var = [float(v) for v in np.diag(model.R)]
         p = self.part.p
         self._ip, self._ik = block_index(p), block_index(self.part.k)
         self._pp, self._kk = block_index(p, p), block_index(self.part.k, self.part.k)
@@ -153,11 +168,18 @@ class ProjectionFilter(Estimator):
         )
         self._mean, self._cov = mean, cov
         self._after_update = False
+        #: compiled kernels (projection_kernels) for two gridded states when Numba is there;
+        #: False runs the numpy code (same results to round-off)
+        self.fast: bool = bool(pk.ENABLED and self.basis.n == 2 and positivity in ("auto", "none")
+                         and spectral_filter == 0)
+        self.kalman.fast = self.fast
         self._set_estimate()
 
     # ------------------------------------------------------------------------------------------
     def _box(self, mean, cov) -> tuple[np.ndarray, np.ndarray]:
         """Symmetric interval ``mean -+ k_sigma sigma`` (eq. 33), with a floor on the width."""
+        if self.fast:
+            return pk.box(mean, cov, self.k_sigma, self.min_halfwidth)
         sig = np.sqrt(np.maximum(np.diag(cov), 0.0))
         floor = np.maximum(self.min_halfwidth, 1e-9 * np.maximum(1.0, np.abs(mean)))
         half = np.maximum(self.k_sigma * sig, floor)
@@ -167,6 +189,12 @@ class ProjectionFilter(Estimator):
         self.x, self.P = assemble_estimate(self)
 
     def _normalize(self) -> float:
+        if self.fast:
+            mass = pk.hermitian_normalize(self.m, self.basis.sqrt_volume())
+            if not (math.isfinite(mass) and mass > 0):
+                self.diverged = True
+                raise FilterDivergence(f"{self.kind}: density lost its mass ({mass})")
+            return mass
         m = self.m
         m += np.conj(m[(slice(None, None, -1),) * m.ndim])  # Hermitian part (times 2)
         m *= 0.5
@@ -189,7 +217,10 @@ class ProjectionFilter(Estimator):
         self._after_update = False
         u = np.asarray(u, dtype=float).reshape(-1)
         part = self.part
-        xk_before = self.kalman.mean.copy()
+        if part.drift_constant and self.fast:
+            self._predict_fast(u, dt)
+            return
+        xk_before = None if part.drift_constant else self.kalman.mean.copy()
         inc = self.kalman.increment(self.x, u, dt)
         if part.drift_constant:
             # A diagonal: translation by the increment (moves the box) and diffusion decay
@@ -234,6 +265,36 @@ class ProjectionFilter(Estimator):
             self._moments()
         self._set_estimate()
 
+    def _predict_fast(self, u, dt: float) -> None:
+        """:meth:`predict` for a drift independent of the gridded states: the conditional
+        Kalman prediction, the moved and decayed series and ``(x, P)`` in one compiled call."""
+        kal = self.kalman
+        fx, F, Q = kal.step.views(self.x, u, dt)  # consumed by the kernel at once
+        use_phi = kal.long_run and kal._phi is not None and bool(kal.k)
+        (m, lo, length, mean, cov, mass, kmean, kcov, Fkk, x, P, finite) = pk.predict_step(
+            self.x, fx[:, 0], F, Q, kal._p_arr, kal._k_arr, kal.cov,
+            kal._phi if use_phi else kal._eye, use_phi, self.m, self.basis.lo,
+            self.basis.length, self._mean, self._cov, self.k_sigma, self.min_halfwidth)
+        kal.mean, kal.cov = kmean, kcov
+        if kal.k:
+            kal._F = Fkk
+        self.m = m
+        self.basis = self.basis.moved(lo, length, copy=False)  # fresh arrays from the kernel
+        self._mean, self._cov = mean, cov
+        if math.isfinite(mass) and mass > 0:  # normalized by the kernel
+            self.diagnostics["prior_mass"] = mass
+            if not finite:
+                self.diverged = True
+                raise FilterDivergence(f"{self.kind}: non-finite estimate")
+            self.x, self.P = x, P
+            return
+        # the signed series lost its mass on the new box: the Gaussian of the predicted moments
+        self.basis = self.basis.moved(*self._box(mean, cov))
+        self.m = po.gaussian_coefficients(mean, cov, self.basis)
+        self.diagnostics["gaussian_fallback"] = 1.0
+        self.diagnostics["prior_mass"] = self._normalize()
+        self._set_estimate()
+
     def update(self, z, mask=None) -> None:
         if self._after_update:
             self.diagnostics = {}
@@ -249,9 +310,11 @@ class ProjectionFilter(Estimator):
             # re-centre on the posterior (eq. 33 with the posterior moments) and, when the
             # posterior box is much narrower, redo the product on its finer grid
             lo, length = self._box(mean, cov)
-            if np.any(length < self.refine * self.basis.length):
+            r = self.refine
+            if any(a < r * b for a, b in zip(length.tolist(), self.basis.length.tolist(),
+                                             strict=True)):
                 new = self.basis.moved(lo, np.minimum(length, self.basis.length))
-                self.m = po.reproject(prior, prior_basis, new)
+                self.m = self._reproject(prior, prior_basis, new)
                 post2, mean2, cov2, ok2 = self._bayes(new, z, rows_g, record=False)
                 if ok2:
                     self.basis, post, mean, cov = new, post2, mean2, cov2
@@ -269,14 +332,33 @@ class ProjectionFilter(Estimator):
             self._report()
             return
         cell = self.basis.cell()
-        self.m = po.from_grid(post, self.basis)  # eqs. 45, 47
-        self.m /= float(post.sum() * cell)
-        if self.positivity == "jackson":
-            self.m = self.m * po.jackson_factors(self.basis)
-        if self._filter is not None:
-            self.m = self.m * self._filter
-        values = po.to_grid(self.m, self.basis)
-        neg = float(-np.minimum(values, 0.0).sum() * cell)
+        if self.fast:
+            tb = pk.tables(self.K, self.basis.M)
+            limit = self.neg_limit if self.positivity == "auto" else np.inf
+            kal = self.kalman
+            self.m, values, neg, mass, x, P, finite = pk.posterior_step(
+                post, tb[2], tb[3], tb[0], tb[1], self.basis.length, limit, self.x.size,
+                kal._p_arr, kal._k_arr, mean, cov, kal.mean, kal.cov)
+            if math.isfinite(mass) and mass > 0:  # no repair: normalized by the kernel
+                diag["neg_mass"] = neg
+                if self.positivity == "auto":
+                    diag["positivity_applied"] = 0.0
+                self._mean, self._cov = mean, cov
+                if not finite:
+                    self.diverged = True
+                    raise FilterDivergence(f"{self.kind}: non-finite estimate")
+                self.x, self.P = x, P
+                self._report()
+                return
+        else:
+            self.m = po.from_grid(post, self.basis)  # eqs. 45, 47
+            self.m /= float(post.sum() * cell)
+            if self.positivity == "jackson":
+                self.m = self.m * po.jackson_factors(self.basis)
+            if self._filter is not None:
+                self.m = self.m * self._filter
+            values = po.to_grid(self.m, self.basis)
+            neg = float(-np.minimum(values, 0.0).sum() * cell)
         diag["neg_mass"] = neg
         mode = self.positivity
         if mode == "auto":
@@ -376,8 +458,45 @@ class ProjectionFilter(Estimator):
             return np.maximum(values - a, 0.0) if a > 0 else values
         return np.maximum(values, 0.0)
 
+    def _reproject(self, m, basis, new):
+        if self.fast:
+            return pk.shift_decay(m, basis.lo, basis.length, new.lo, new.length, _NO_D, False)
+        return po.reproject(m, basis, new)
+
+    def _bayes_fast(self, basis, z, r: int, record: bool):
+        """:meth:`_bayes` for one terrain row and two gridded states (compiled kernels)."""
+        tg = self.likelihood.terrain_rows[r]
+        tb = pk.tables(self.K, basis.M)
+        values, E, V, neg, tmax, vmin = pk.bayes_terms(
+            self.m, tb[0], tb[1], basis.lo, basis.length, tg.t.coefficients, tg.tpar, tg.ipar,
+            float(z[r]), self._var[r], self.resolution_inflation)
+        if record:
+            self.diagnostics["neg_mass_prior"] = neg
+        np.exp(E, out=E)
+        post, Z, mean, cov, status = pk.bayes_posterior(values, E, V, vmin, basis.lo,
+                                                        basis.length)
+        if status == 1:
+            return values, None, None, False
+        # ll = W + tmax - log(V) / 2; post used exp(ll - tmax + log(vmin) / 2)
+        shift = tmax - 0.5 * math.log(vmin) if self.resolution_inflation else tmax
+        self.diagnostics["loglik"] = math.log(Z) + shift
+        return post, mean, cov, status != 3
+
     def _bayes(self, basis, z, rows_g, record: bool):
         """Prior times likelihood on the quadrature grid of ``basis``; its moments (eq. 50-51)."""
+        if self.fast and len(rows_g) == 1 and rows_g[0] in self.likelihood.terrain_rows:
+            return self._bayes_fast(basis, z, rows_g[0], record)
+        if self.fast and not rows_g:  # no grid measurement: the prior's grid and moments
+            tb = pk.tables(self.K, basis.M)
+            values, neg = pk.prior_values(self.m, tb[0], tb[1], basis.length)
+            if record:
+                self.diagnostics["neg_mass_prior"] = neg
+            one = _ones(basis.M)
+            post, _, mean, cov, status = pk.bayes_posterior(values, one, one, 1.0, basis.lo,
+                                                            basis.length)
+            if status == 1:
+                return values, None, None, False
+            return post, mean, cov, status != 3
         cell = basis.cell()
         values = po.to_grid(self.m, basis)
         if record:
@@ -428,10 +547,10 @@ class ProjectionFilter(Estimator):
     def _report(self) -> None:
         d = self.diagnostics
         d["n_basis"] = float(self.basis.size)
-        lo, hi = self.basis.lo, self.basis.hi
+        lo, hi = self.basis.lo.tolist(), self.basis.hi.tolist()
         for i, (klo, khi) in enumerate(self._keys):
-            d[klo] = float(lo[i])
-            d[khi] = float(hi[i])
+            d[klo] = lo[i]
+            d[khi] = hi[i]
 
     # ------------------------------------------------------------------------------------------
     @property

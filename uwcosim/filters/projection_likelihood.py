@@ -28,6 +28,10 @@ class TerrainGrid:
     def __init__(self, terrain) -> None:
         self.t = terrain
         self.pad = (terrain.coefficients.shape[0] - terrain.shape[0]) // 2
+        # packed map description for the compiled kernels (projection_kernels)
+        ny, nx = terrain.shape
+        self.tpar = np.array([terrain.x0, terrain.y0, terrain.dx, terrain.dy], dtype=float)
+        self.ipar = np.array([nx, ny, self.pad], dtype=np.int64)
 
     @staticmethod
     def _weights(s: np.ndarray, n: int):

@@ -37,6 +37,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from uwcosim.errors import FilterDivergence
+from uwcosim.filters import projection_kernels as pk
 from uwcosim.filters.base import select
 from uwcosim.filters.numerics import cholesky, kalman_gain, nis, symmetrize
 
@@ -61,13 +62,23 @@ class FastFunction:
             self._buf.set_arg(i, memoryview(a))
         for i, r in enumerate(self._out):
             self._buf.set_res(i, memoryview(r))
+        self._views = [r.reshape(s, order="F") for r, s in zip(self._out, self._shapes,
+                                                                 strict=True)]
 
     def __call__(self, *args) -> list[np.ndarray]:
         for a, v in zip(self._in, args, strict=False):
-            a[:] = np.ravel(v)
+            a[:] = v if getattr(v, "ndim", 1) <= 1 else np.ravel(v)
         self._eval()
         pairs = zip(self._out, self._shapes, strict=True)
         return [r.reshape(s, order="F").copy() for r, s in pairs]
+
+    def views(self, *args) -> list[np.ndarray]:
+        """As a call, but the outputs are views of the internal buffers (Fortran order), valid
+        until the next call: for a caller that consumes them at once."""
+        for a, v in zip(self._in, args, strict=False):
+            a[:] = v if getattr(v, "ndim", 1) <= 1 else np.ravel(v)
+        self._eval()
+        return self._views
 
 
 def _resolve_states(spec, names: tuple[str, ...]) -> list[int]:
@@ -206,6 +217,19 @@ class Partition:
 
     def split_rows(self, z, mask, nz: int):
         """``(z, kalman rows, grid rows)`` of the measurement components available now."""
+        if pk.ENABLED and z is not None:
+            z = np.asarray(z, dtype=float)
+            bits = pk.available_bits(z, self.use if mask is None else np.asarray(mask, bool),
+                                     self.use)
+            if bits == 0:
+                return z, [], []
+            split = self._splits.get(bits)
+            if split is None:
+                rows = [r for r in range(nz) if bits >> r & 1]
+                split = ([r for r in rows if r in self.rows_kalman],
+                         [r for r in rows if r in self.rows_grid])
+                self._splits[bits] = split
+            return z, list(split[0]), list(split[1])
         if z is not None:
             mask = self.use if mask is None else (np.asarray(mask, bool) & self.use)
         idx = select(z, mask, nz)
@@ -382,6 +406,11 @@ class ConditionalKalman:
         self._pp = block_index(self.p, self.p)
         self._pk = block_index(self.p, self.k)
         self._kk = block_index(self.k, self.k)
+        self._p_arr = np.asarray(self.p, dtype=np.int64)
+        self._k_arr = np.asarray(self.k, dtype=np.int64)
+        #: compiled kernels (projection_kernels) when Numba is there; False: numpy code
+        self.fast = pk.ENABLED
+        self._rows_idx = np.asarray(self.rows, dtype=np.intp)
         if self.rows:
             self.H = part.H_kalman[:, self.k]
             self.c = part.c_kalman
@@ -406,6 +435,15 @@ class ConditionalKalman:
         """Predict the ``k`` block; return the gridded block's increment over the step."""
         fx, F, Q = self.step(x_full, u, dt)
         fx = fx.reshape(-1)
+        if self.fast:
+            use_phi = self.long_run and self._phi is not None and bool(self.k)
+            phi = self._phi if use_phi else self._eye
+            d, D, Dk, self.mean, self.cov = pk.kalman_increment(
+                np.asarray(x_full, float), fx, F, Q, self._p_arr, self._k_arr, self.cov, phi,
+                use_phi)
+            if self.k:
+                self._F = F[self._kk]
+            return Increment(d, D, Dk, F)
         k = self.k
         d = fx[self._ip] - x_full[self._ip]
         D = Q[self._pp]
@@ -429,6 +467,14 @@ class ConditionalKalman:
             return
         if rows == self.rows:
             H, R, c = self.H, self._R, self.c
+            if self.fast:
+                mean, cov, phi, nis_, ok = pk.kalman_update(self.mean, self.cov, H, R, c,
+                                                            z.take(self._rows_idx), self._F)
+                if ok:
+                    self.mean, self.cov, self._phi = mean, cov, phi
+                    diagnostics["nis"] = nis_
+                    diagnostics["nis_dof"] = float(len(rows))
+                    return
         else:
             sel = [self.rows.index(r) for r in rows]
             H, R, c = self.H[sel], self.model.R[np.ix_(rows, rows)], self.c[sel]
@@ -448,6 +494,14 @@ class ConditionalKalman:
 def assemble_estimate(est) -> tuple[np.ndarray, np.ndarray]:
     """``(x, P)`` of a partitioned filter (grid or projection) from its gridded block
     (``_mean``, ``_cov``) and its conditional Kalman block; FilterDivergence if non-finite."""
+    kal = est.kalman
+    if kal.fast:
+        x, P, finite = pk.assemble(est.x.size, kal._p_arr, kal._k_arr, est._mean, est._cov,
+                                   kal.mean, kal.cov)
+        if not finite:
+            est.diverged = True
+            raise FilterDivergence(f"{est.kind}: non-finite estimate")
+        return x, P
     x = est.x.copy()
     P = np.zeros_like(est.P)
     x[est._ip] = est._mean

@@ -86,8 +86,9 @@ class SpectralBasis:
         """The quadrature grid ``x_n = lo + n L / M`` of every dimension (cached)."""
         ax = self._cache.get("axes")
         if ax is None:
+            ar = _arange(self.M)
             ax = self._cache["axes"] = [
-                self.lo[d] + self.length[d] * np.arange(self.M) / self.M for d in range(self.n)
+                self.lo[d] + self.length[d] * ar / self.M for d in range(self.n)
             ]
         return ax
 
@@ -95,18 +96,34 @@ class SpectralBasis:
         """Quadrature weight (cell volume) ``prod L_d / M`` (cached)."""
         c = self._cache.get("cell")
         if c is None:
-            c = self._cache["cell"] = float(np.prod(self.length / self.M))
+            c = self._cache["cell"] = math.prod((self.length / self.M).tolist())
         return c
 
     def sqrt_volume(self) -> float:
         """``sqrt(prod L_d)`` (cached): the mass of the series is ``sqrt_volume * m_0``."""
         v = self._cache.get("sqrt_volume")
         if v is None:
-            v = self._cache["sqrt_volume"] = math.sqrt(float(np.prod(self.length)))
+            v = self._cache["sqrt_volume"] = math.sqrt(math.prod(self.length.tolist()))
         return v
 
-    def moved(self, lo, length) -> SpectralBasis:
-        return SpectralBasis(lo, length, self.K, self.M)
+    def moved(self, lo, length, copy: bool = True) -> SpectralBasis:
+        """The same basis on another box (``copy=False``: ``lo`` and ``length`` are fresh 1-D
+        float arrays the caller hands over)."""
+        new = object.__new__(SpectralBasis)  # K and M are valid: skip __post_init__'s checks
+        if copy:
+            new.lo = np.array(lo, dtype=float).reshape(-1)
+            new.length = np.array(length, dtype=float).reshape(-1)
+        else:
+            new.lo, new.length = lo, length
+        new.K, new.M, new._cache = self.K, self.M, {}
+        return new
+
+
+@lru_cache(maxsize=16)
+def _arange(M: int) -> np.ndarray:
+    a = np.arange(M)
+    a.setflags(write=False)
+    return a
 
 
 # ---------------------------------------------------------------------------------------------

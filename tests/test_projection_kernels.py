@@ -1,0 +1,172 @@
+"""Compiled kernels (Numba) of the projection and point-mass filters against the numpy code.
+
+The numpy code is the reference (and the fallback without Numba): each kernel, and each filter
+run with its kernels on (``fast``) and off, must agree to round-off.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from uwcosim.filters import point_mass as pm
+from uwcosim.filters import projection_kernels as pk
+from uwcosim.filters import projection_ops as po
+from uwcosim.filters.base import ESTIMATORS
+from uwcosim.filters.projection_likelihood import TerrainGrid
+from uwcosim.models.bathymetry import synthetic_bathymetry
+from uwcosim.models.tan import tan_model
+
+pytestmark = pytest.mark.skipif(not pk.ENABLED, reason="Numba not installed or disabled")
+
+START = np.array([3000.0, 16000.0, 0.5, 0.0])
+
+
+@pytest.fixture(scope="module")
+def terrain():
+    return synthetic_bathymetry(3)
+
+
+def _basis(L=240.0, K=10, M=64):
+    return po.SpectralBasis(np.array([3000.0, 16000.0]), np.array([L, 0.8 * L]), K, M)
+
+
+def _series(basis):
+    mean = basis.lo + np.array([0.45, 0.55]) * basis.length
+    return po.gaussian_coefficients(mean, np.array([[300.0, 50.0], [50.0, 200.0]]), basis)
+
+
+@pytest.mark.parametrize("K,M", [(10, 64), (4, 18), (7, 32)])
+def test_grid_transforms_match_numpy(K, M):
+    basis = _basis(K=K, M=M)
+    m = _series(basis)
+    Tq, Tx, Tg, Tm = pk.tables(K, M)
+    sv = basis.sqrt_volume()
+    values = po.to_grid(m, basis)
+    fast = pk.to_grid2(m, Tq, Tx, 1.0 / sv)
+    assert np.max(np.abs(fast - values)) <= 1e-12 * np.max(np.abs(values))
+    g = np.abs(values) * np.random.default_rng(0).random(values.shape)
+    ref = po.from_grid(g, basis)
+    out = pk.from_grid2(g, Tg, Tm, sv / M**2)
+    assert np.max(np.abs(out - ref)) <= 1e-12 * np.max(np.abs(ref))
+
+
+@pytest.mark.parametrize("L", [60.0, 240.0, 3000.0])
+def test_terrain_depth_matches_grid_evaluation(terrain, L):
+    tg = TerrainGrid(terrain)
+    ax = _basis(L=L).axes()
+    ref = tg.depth(ax[0], ax[1])
+    t = terrain
+    out = pk.terrain_depth(ax[0], ax[1], t.coefficients, t.x0, t.y0, t.dx, t.dy, t.shape[1],
+                           t.shape[0], tg.pad)
+    assert np.max(np.abs(out - ref)) < 1e-9
+
+
+def test_shift_decay_matches_reprojection_and_decay():
+    basis = _basis()
+    m = _series(basis)
+    new = basis.moved(basis.lo + [5.0, -3.0], basis.length * 0.9)
+    D = np.array([[2.0, 0.3], [0.3, 1.5]])
+    mats = po.transfer_matrices(basis.K, basis.lo, basis.length, new.lo, new.length)
+    ref = po.contract(m, list(mats)) * po.diffusion_decay(new, D)
+    out = pk.shift_decay(m, basis.lo, basis.length, new.lo, new.length, D, True)
+    assert np.max(np.abs(out - ref)) <= 1e-12 * np.max(np.abs(ref))
+    # disjoint boxes: nothing is carried over
+    far = basis.moved(basis.lo + 10 * basis.length, basis.length)
+    assert not np.any(pk.shift_decay(m, basis.lo, basis.length, far.lo, far.length, D, False))
+
+
+def test_spline_shift_matches_sparse_matrices():
+    rng = np.random.default_rng(1)
+    X = rng.random((56, 60))
+    c0 = np.linspace(-2.0, 52.5, 50)  # some points outside the old 50 x 52 grid
+    c1 = np.linspace(0.3, 51.0, 52)
+    B0 = pm._spline_matrix(c0, 50, 56)
+    ref = B0 @ X
+    B1 = pm._spline_matrix(c1, 52, 60)
+    ref = np.maximum((B1 @ ref.T).T, 0.0)
+    out = pk.spline_shift_2d(X, c0, c1, 50, 52)
+    assert np.max(np.abs(out - ref)) < 1e-13
+
+
+def test_available_bits():
+    z = np.array([1.0, np.nan, 3.0, 4.0])
+    assert pk.available_bits(z, np.ones(4, bool), np.array([1, 1, 1, 0], bool)) == 0b101
+    assert pk.available_bits(z, np.array([0, 1, 1, 1], bool), np.ones(4, bool)) == 0b1100
+
+
+def _trajectory(model, steps, seed=1):
+    rng = np.random.default_rng(seed)
+    x = START.copy()
+    us, zs = [], []
+    for k in range(steps):
+        u = np.array([0.3 + 0.2 * np.sin(0.05 * k), 0.002])
+        _, G = model.FG(x, u, 1.0)
+        x = model.f(x, u, 1.0) + G @ (rng.standard_normal(4) * np.sqrt(model.q_psd))
+        z = model.h(x) + rng.multivariate_normal(np.zeros(model.nz), model.R)
+        if k % 7 == 3:
+            z[2] = np.nan  # a lost depth measurement now and then
+        us.append(u)
+        zs.append(z)
+    return us, zs
+
+
+@pytest.mark.parametrize("name,settings,steps", [
+    ("pfm_psi", {"K": 10}, 60),
+    # thresholded every step: max(p - a, 0) amplifies round-off (~3x per step), so only the
+    # first steps can agree to round-off
+    ("pfm_psi", {"K": 6, "k_sigma": 10.0, "resolution_inflation": 0.0}, 10),
+    ("point_mass", {"n_points": 61}, 60),
+])
+def test_filters_same_with_and_without_kernels(terrain, name, settings, steps):
+    model = tan_model([0.05, 0.05, 1e-4, 1e-4], 0.03, 2.0, terrain=terrain)
+    us, zs = _trajectory(model, steps)
+    P0 = np.diag([30.0**2, 30.0**2, 0.05**2, 0.05**2])
+    x0 = START + np.array([20.0, -25.0, 0.02, -0.01])
+    cls = ESTIMATORS.get(name)
+    runs = []
+    for fast in (True, False):
+        est = cls.from_settings(model, x0, P0, settings)
+        assert est.fast  # the kernels apply to this model
+        est.fast = est.kalman.fast = fast
+        xs, Ps, diags = [], [], []
+        for u, z in zip(us, zs, strict=True):
+            est.predict(u, 1.0)
+            est.update(z)
+            xs.append(est.x.copy())
+            Ps.append(est.P.copy())
+            diags.append(dict(est.diagnostics))
+        runs.append((np.array(xs), np.array(Ps), diags))
+    (x1, P1, d1), (x2, P2, d2) = runs
+    np.testing.assert_allclose(x1, x2, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(P1, P2, rtol=1e-7, atol=1e-12)
+    for a, b in zip(d1, d2, strict=True):
+        assert a.keys() == b.keys()
+        for key in a:
+            np.testing.assert_allclose(a[key], b[key], rtol=1e-6, atol=1e-12, err_msg=key)
+
+
+def test_environment_switch_disables_kernels():
+    env = dict(os.environ, UWCOSIM_NUMBA="0")
+    code = "from uwcosim.filters import projection_kernels as pk; print(pk.ENABLED)"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_interrupt_wrapped_by_a_kernel_is_recognized():
+    def wrapped():
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as inner:
+            raise SystemError("returned a result with an exception set") from inner
+
+    with pytest.raises(SystemError) as info:
+        wrapped()
+    assert pk.interrupted(info.value)
+    assert not pk.interrupted(SystemError("other"))
+    assert not pk.interrupted(ValueError("x"))

@@ -1,0 +1,317 @@
+"""Compiled kernels of the projection filter's prediction and of the conditional Kalman filter.
+
+Part of :mod:`uwcosim.filters.projection_kernels` (same conventions, same lazy compilation; the
+filters reach these kernels through that module): the exact re-projection of the series onto a
+moved box with the Gaussian decay (:func:`shift_decay`, :func:`predict_shift`), the conditional
+Kalman filter of the velocities (:func:`kalman_increment`, :func:`kalman_update`), the assembly
+of ``(x, P)`` (:func:`assemble`) and the fused per-step calls :func:`predict_step` and
+:func:`posterior_step`. Small matrices are multiplied by loops (cheaper than a BLAS call).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from uwcosim.filters.projection_kernels import (
+    TWO_PI,
+    _jit,
+    _sym,
+    box,
+    hermitian_normalize,
+    posterior_coefficients,
+)
+
+# ---------------------------------------------------------------------------------------------
+# PFM-PSI prediction
+
+
+@_jit
+def _transfer(K, lo, length, lo2, length2):
+    """:func:`projection_ops.transfer_matrix` (one dimension), with the phases and the sine of
+    the difference ``sin(x_i - y_j)`` separated into per-index factors."""
+    n = 2 * K + 1
+    a = max(lo, lo2)
+    w = min(lo + length, lo2 + length2) - a
+    T = np.zeros((n, n), np.complex128)
+    if w <= 0.0:
+        return T
+    c = w / math.sqrt(length * length2)
+    left = np.empty(n, np.complex128)
+    right = np.empty(n, np.complex128)
+    om = np.empty(n)
+    om2 = np.empty(n)
+    sa = np.empty(n)
+    ca = np.empty(n)
+    sb = np.empty(n)
+    cb = np.empty(n)
+    for i in range(n):
+        om2[i] = TWO_PI * (i - K) / length2
+        om[i] = TWO_PI * (i - K) / length
+        ph = -om2[i] * (a - lo2 + 0.5 * w)
+        left[i] = complex(math.cos(ph), math.sin(ph))
+        ph = om[i] * (a - lo + 0.5 * w)
+        right[i] = complex(math.cos(ph), math.sin(ph))
+        x = -0.5 * w * om2[i]
+        y = -0.5 * w * om[i]
+        sa[i], ca[i] = math.sin(x), math.cos(x)
+        sb[i], cb[i] = math.sin(y), math.cos(y)
+    for i in range(n):
+        for j in range(n):
+            delta = (om2[i] - om[j]) * (-0.5 * w)
+            if delta == 0.0:
+                s = 1.0
+            elif abs(delta) < 0.5:  # sin(x - y) from the factors cancels: direct
+                s = math.sin(delta) / delta
+            else:  # sin(x - y) = sin x cos y - cos x sin y, |error| <= 4 eps / |delta|
+                s = (sa[i] * cb[j] - ca[i] * sb[j]) / delta
+            T[i, j] = left[i] * right[j] * (s * c)
+    return T
+
+
+@_jit
+def shift_decay(m, lo, length, lo2, length2, D, decay):
+    """Re-projection of ``m`` from the box ``(lo, length)`` onto ``(lo2, length2)`` (exact
+    integrals, :func:`projection_ops.reproject`), times ``exp(-w' D w / 2)`` on the new box
+    when ``decay`` (:func:`projection_ops.diffusion_decay`)."""
+    K = (m.shape[0] - 1) // 2
+    n = 2 * K + 1
+    T0 = _transfer(K, lo[0], length[0], lo2[0], length2[0])
+    T1 = _transfer(K, lo[1], length[1], lo2[1], length2[1])
+    # the result is Hermitian (out[-q] = conj(out[q]), as m and the transfers are): compute
+    # the rows q_0 >= 0 and mirror them
+    half = np.ascontiguousarray(T0[K:]) @ m @ np.ascontiguousarray(T1.T)
+    out = np.empty((n, n), np.complex128)
+    for i in range(K + 1):
+        a = TWO_PI * i / length2[0]
+        for j in range(n):
+            v = half[i, j]
+            if decay:
+                b = TWO_PI * (j - K) / length2[1]
+                quad = (0.5 * D[0, 0]) * (a * a) + (0.5 * D[1, 1]) * (b * b) + (D[0, 1] * a) * b
+                v *= math.exp(-quad)
+            out[K + i, j] = v
+            if i > 0:
+                out[K - i, n - 1 - j] = v.conjugate()
+    return out
+
+
+@_jit
+def predict_shift(m, lo, length, mean, cov, d, D, k_sigma, min_halfwidth):
+    """``ProjectionFilter.predict`` for a drift independent of the gridded states.
+
+    The box moves to ``box(mean + d, cov + D)``; the series is translated by ``d`` and re-projected
+    there, then decays by ``exp(-w' D w / 2)``. Returns ``(m, lo, length, mean, cov, mass)``;
+    when the mass is finite and positive, ``m`` is already made Hermitian and normalized.
+    """
+    mean2 = mean + d
+    cov2 = cov + D
+    lo2, len2 = box(mean2, cov2, k_sigma, min_halfwidth)
+    out = shift_decay(m, lo + d, length, lo2, len2, D, True)
+    K = (m.shape[0] - 1) // 2
+    mass = math.sqrt(len2[0] * len2[1]) * out[K, K].real
+    if math.isfinite(mass) and mass > 0.0:
+        mass = hermitian_normalize(out, math.sqrt(len2[0] * len2[1]))
+    return out, lo2, len2, mean2, _sym(cov2), mass
+
+
+@_jit
+def available_bits(z, mask, use):
+    """Bit ``r`` set when ``z[r]`` is finite and ``mask[r]`` and ``use[r]`` (``split_rows``)."""
+    bits = 0
+    for r in range(z.size):
+        if mask[r] and use[r] and math.isfinite(z[r]):
+            bits |= 1 << r
+    return bits
+
+
+# ---------------------------------------------------------------------------------------------
+# conditional Kalman filter of the velocities and (x, P)
+
+
+@_jit
+def _chol_ok(S):
+    """Whether the symmetric ``S`` (lower triangle) is positive definite (Cholesky)."""
+    n = S.shape[0]
+    L = np.zeros((n, n))
+    for j in range(n):
+        d = S[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        if not d > 0.0:
+            return False
+        L[j, j] = math.sqrt(d)
+        for i in range(j + 1, n):
+            v = S[i, j]
+            for k in range(j):
+                v -= L[i, k] * L[j, k]
+            L[i, j] = v / L[j, j]
+    return True
+
+
+@_jit
+def _solve(A, B):
+    """``A^-1 B`` by Gaussian elimination with partial pivoting (as LAPACK gesv); ``ok``."""
+    n = A.shape[0]
+    A = A.copy()
+    X = B.copy()
+    for c in range(n):
+        p = c
+        for r in range(c + 1, n):
+            if abs(A[r, c]) > abs(A[p, c]):
+                p = r
+        if A[p, c] == 0.0:
+            return X, False
+        if p != c:
+            for k in range(n):
+                A[c, k], A[p, k] = A[p, k], A[c, k]
+            for k in range(X.shape[1]):
+                X[c, k], X[p, k] = X[p, k], X[c, k]
+        for r in range(c + 1, n):
+            f = A[r, c] / A[c, c]
+            for k in range(c, n):
+                A[r, k] -= f * A[c, k]
+            for k in range(X.shape[1]):
+                X[r, k] -= f * X[c, k]
+    for c in range(n - 1, -1, -1):
+        for k in range(X.shape[1]):
+            v = X[c, k]
+            for j in range(c + 1, n):
+                v -= A[c, j] * X[j, k]
+            X[c, k] = v / A[c, c]
+    return X, True
+
+
+@_jit
+def _mm(A, B):
+    """``A @ B`` by loops (tiny matrices: cheaper than a BLAS call)."""
+    n, m, p = A.shape[0], A.shape[1], B.shape[1]
+    out = np.zeros((n, p))
+    for i in range(n):
+        for k in range(m):
+            a = A[i, k]
+            for j in range(p):
+                out[i, j] += a * B[k, j]
+    return out
+
+
+@_jit
+def _mv(A, x):
+    out = np.zeros(A.shape[0])
+    for i in range(A.shape[0]):
+        for k in range(A.shape[1]):
+            out[i] += A[i, k] * x[k]
+    return out
+
+
+@_jit
+def kalman_increment(x, fx, F, Q, p, k, cov, phi, use_phi):
+    """:meth:`ConditionalKalman.increment` after the model call: ``(d, D, Dk, mean, cov)``."""
+    npp, nk = p.size, k.size
+    d = np.empty(npp)
+    D = np.empty((npp, npp))
+    for a in range(npp):
+        d[a] = fx[p[a]] - x[p[a]]
+        for b in range(npp):
+            D[a, b] = Q[p[a], p[b]]
+    Dk = np.zeros((npp, npp))
+    mean = np.empty(nk)
+    new_cov = cov
+    if nk:
+        S = cov
+        if use_phi:
+            eye = np.eye(nk)
+            X, ok = _solve(eye - phi, cov)
+            if ok:
+                S2 = _sym(X + X.T - cov)
+                tr, trP = 0.0, 0.0
+                for a in range(nk):
+                    tr += S2[a, a]
+                    trP += cov[a, a]
+                if (math.isfinite(S2.sum()) and not tr > 1e6 * max(trP, 1e-300)
+                        and _chol_ok(S2)):
+                    S = S2
+        Fpk = np.empty((npp, nk))
+        Fkk = np.empty((nk, nk))
+        Qkk = np.empty((nk, nk))
+        for a in range(npp):
+            for b in range(nk):
+                Fpk[a, b] = F[p[a], k[b]]
+        for a in range(nk):
+            mean[a] = fx[k[a]]
+            for b in range(nk):
+                Fkk[a, b] = F[k[a], k[b]]
+                Qkk[a, b] = Q[k[a], k[b]]
+        Dk = _sym(_mm(_mm(Fpk, S), Fpk.T))
+        new_cov = _sym(_mm(_mm(Fkk, cov), Fkk.T) + Qkk)
+        D = D + Dk
+    return d, _sym(D), Dk, mean, new_cov
+
+
+@_jit
+def kalman_update(mean, cov, H, R, c, y_meas, F):
+    """Joseph-form update of the ``k`` block: ``(mean, cov, phi, nis, ok)``; ``ok`` False when
+    ``S`` is not positive definite (the caller then runs the repairing numpy path)."""
+    y = y_meas - (_mv(H, mean) + c)
+    PHt = _mm(cov, H.T)
+    S = _sym(_mm(H, PHt) + R)
+    if not _chol_ok(S):
+        return mean, cov, F, 0.0, False
+    Sinv_y, _ = _solve(S, y.reshape(-1, 1))
+    Kt, _ = _solve(S, PHt.T.copy())
+    K = Kt.T.copy()
+    nis = 0.0
+    for a in range(y.size):
+        nis += y[a] * Sinv_y[a, 0]
+    new_mean = mean + _mv(K, y)
+    IKH = np.eye(mean.size) - _mm(K, H)
+    new_cov = _sym(_mm(_mm(IKH, cov), IKH.T) + _mm(_mm(K, R), K.T))
+    return new_mean, new_cov, _mm(IKH, F), nis, True
+
+
+@_jit
+def assemble(nx, p, k, mean_p, cov_p, mean_k, cov_k):
+    """``(x, P, finite)`` of a partitioned filter (:func:`assemble_estimate`)."""
+    x = np.zeros(nx)
+    P = np.zeros((nx, nx))
+    for a in range(p.size):
+        x[p[a]] = mean_p[a]
+        for b in range(p.size):
+            P[p[a], p[b]] = cov_p[a, b]
+    for a in range(k.size):
+        x[k[a]] = mean_k[a]
+        for b in range(k.size):
+            P[k[a], k[b]] = cov_k[a, b]
+    finite = math.isfinite(x.sum() + P.sum())
+    return x, _sym(P), finite
+
+
+@_jit
+def predict_step(x, fx, F, Q, p, k, kcov, phi, use_phi, m, lo, length, mean, cov, k_sigma,
+                 min_halfwidth):
+    """One ``ProjectionFilter.predict`` (drift independent of the gridded states) after the
+    model call ``(fx, F, Q)``: :func:`kalman_increment`, :func:`predict_shift` and
+    :func:`assemble` in one call. Returns ``(m, lo, length, mean, cov, mass, kmean, kcov, Fkk,
+    x, P, finite)``."""
+    d, D, _, kmean, kcov2 = kalman_increment(x, fx, F, Q, p, k, kcov, phi, use_phi)
+    m2, lo2, len2, mean2, cov2, mass = predict_shift(m, lo, length, mean, cov, d, D, k_sigma,
+                                                     min_halfwidth)
+    Fkk = np.empty((k.size, k.size))
+    for a in range(k.size):
+        for b in range(k.size):
+            Fkk[a, b] = F[k[a], k[b]]
+    x2, P2, finite = assemble(x.size, p, k, mean2, cov2, kmean, kcov2)
+    return m2, lo2, len2, mean2, cov2, mass, kmean, kcov2, Fkk, x2, P2, finite
+
+
+@_jit
+def posterior_step(post, Tg, Tm, Tq, Tx, length, neg_limit, nx, p, k, mean, cov, kmean, kcov):
+    """:func:`posterior_coefficients` and, when the series needs no repair, :func:`assemble`
+    of ``(x, P)`` from the posterior moments: ``(m, values, neg, mass, x, P, finite)``."""
+    m, values, neg, mass = posterior_coefficients(post, Tg, Tm, Tq, Tx, length, neg_limit)
+    if math.isfinite(mass) and mass > 0.0:
+        x, P, finite = assemble(nx, p, k, mean, cov, kmean, kcov)
+    else:
+        x, P, finite = np.zeros(nx), np.zeros((nx, nx)), False
+    return m, values, neg, mass, x, P, finite

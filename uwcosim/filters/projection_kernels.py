@@ -1,0 +1,549 @@
+"""Compiled (Numba) kernels of the projection (``pfm_psi``) and point-mass filters' hot paths.
+
+At 21 x 21 modes or a 101 x 101 grid the filters' arithmetic is small; in numpy the time per
+step is the overhead of a few hundred small calls. These kernels fuse the steps of the common
+case (two gridded states, a terrain-depth measurement, a drift independent of the position:
+the TAN model of seed 000) into a handful of compiled calls:
+
+- :func:`terrain_depth`: the bathymetry B-spline on a tensor grid (separable, 4 + 4 taps);
+- :func:`to_grid2` / :func:`from_grid2`: the series <-> grid quadratures of
+  :mod:`uwcosim.filters.projection_ops` with the Hermitian symmetry folded (half the products),
+  as two BLAS matrix products each;
+- :func:`bayes_terms` / :func:`bayes_posterior` / :func:`posterior_coefficients`: the Bayes
+  product, its moments and the re-projection of ``ProjectionFilter.update``;
+- in :mod:`uwcosim.filters.projection_kalman`: :func:`shift_decay`, the prediction (exact
+  re-projection and Gaussian decay) of ``predict``, and the conditional Kalman filter of the
+  velocities with the assembly of ``(x, P)`` (:func:`kalman_increment`, :func:`kalman_update`,
+  :func:`assemble`, and the fused :func:`predict_step` / :func:`posterior_step`);
+- in :mod:`uwcosim.filters.point_mass_kernels`: the point-mass prediction (spline shift,
+  Gaussian and prefilter symbol) and Bayes product.
+
+All are reachable from this module (the filters call ``projection_kernels.NAME``).
+
+Every kernel computes what the numpy code computes, in another summation order: results agree
+to round-off (``tests/test_projection_kernels.py`` runs both paths). Exponentials of whole
+grids stay in numpy (its SIMD ``exp`` is several times faster than a compiled scalar loop).
+
+Numba is optional: without it (or with ``UWCOSIM_NUMBA=0`` in the environment) :data:`ENABLED`
+is False and the filters run their numpy code. Numba is imported at the first kernel call, not
+at import (about 0.5 s that scenarios without these filters do not pay). Compiled kernels are
+cached on disk (``cache=True``), so campaign worker processes load them instead of compiling.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.util
+import math
+import os
+
+import numpy as np
+
+ENABLED = (importlib.util.find_spec("numba") is not None
+           and os.environ.get("UWCOSIM_NUMBA", "1") != "0")
+
+TWO_PI = 2.0 * np.pi
+
+# Numba is imported (about 0.5 s) and the kernels are bound to their compiled versions at the
+# first call of any kernel, not at import: scenarios without these filters do not pay for it.
+# Kernels live in this module, projection_kalman and point_mass_kernels; all register here.
+_PLAIN: list[tuple] = []  # (python function, fastmath flags, first-call stub)
+
+
+def _compile_all() -> None:
+    """Compile every registered kernel (lazily: Numba compiles or loads a kernel from its
+    on-disk cache at its first call) and bind the compiled kernels wherever the modules hold
+    the first-call stubs (their own names and the names they import from each other)."""
+    import numba
+
+    compiled = {}
+    spaces = {}
+    for fn, fastmath, stub in _PLAIN:
+        jit = numba.njit(cache=True, nogil=True, error_model="numpy", fastmath=fastmath)
+        compiled[id(stub)] = (stub, jit(fn))
+        spaces[id(fn.__globals__)] = fn.__globals__
+    for g in spaces.values():
+        for name, value in list(g.items()):
+            hit = compiled.get(id(value))
+            if hit is not None and hit[0] is value:
+                g[name] = hit[1]
+    _PLAIN.clear()
+
+
+def _register(fn, fastmath):
+    @functools.wraps(fn)
+    def first_call(*args):
+        if _PLAIN:
+            _compile_all()
+        return fn.__globals__[fn.__name__](*args)
+
+    _PLAIN.append((fn, fastmath, first_call))
+    return first_call
+
+
+def interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` is a KeyboardInterrupt that a compiled kernel wrapped: Ctrl-C landing in
+    the Python code Numba runs while it returns arrays surfaces as a ``SystemError`` caused by
+    the ``KeyboardInterrupt`` (callers re-raise it as the interrupt it is)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def _jit_fast(fn):
+    """Kernels that test nothing for finiteness (IEEE arithmetic, as :func:`_jit`; kept apart
+    so that their flags can be revisited on their own)."""
+    return _register(fn, False)
+
+
+def _jit(fn):
+    """IEEE arithmetic in source order: no fast-math. Reassociation and contraction let LLVM's
+    result depend on what it inlines, and a kernel compiled afresh then differed in the last
+    bits from the same kernel loaded from Numba's cache, so that the same scenario and seed
+    gave different logs on a fresh machine (measured: 1e-11 m in PFM-PSI's estimate). The
+    price is the vectorized reductions: about 15 % of PFM-PSI's step (docs/benchmarks.md)."""
+    return _register(fn, False)
+
+
+# ---------------------------------------------------------------------------------------------
+# tables (computed once per (K, M))
+
+_TABLES: dict = {}
+
+
+def tables(K: int, M: int):
+    """Trigonometric tables of the folded transforms for ``q = -K..K`` on ``M`` points.
+
+    Returns ``(Tq, Tx, Tg, Tm)``: ``Tq = [[C, S], [-S, C]]`` with ``C[q, n] = cos(2 pi q n / M)``
+    (``(2(2K+1), 2M)``, for ``[m_r | m_i] @ Tq``); ``Tx = [w C0' | -w S0']`` (``(M, 2(K+1))``,
+    ``q = 0..K``, ``w = 1, 2, 2, ...``); ``Tg = [C' | S']`` (``(M, 2(2K+1))``); ``Tm = [C0; S0]``
+    (``(2(K+1), M)``).
+    """
+    key = (K, M)
+    out = _TABLES.get(key)
+    if out is None:
+        n = np.arange(M)
+        q = np.arange(-K, K + 1)
+        ang = TWO_PI * np.outer(q, n) / M
+        C, S = np.cos(ang), np.sin(ang)
+        Tq = np.ascontiguousarray(np.block([[C, S], [-S, C]]))
+        q0 = np.arange(K + 1)
+        ang0 = TWO_PI * np.outer(q0, n) / M
+        C0, S0 = np.cos(ang0), np.sin(ang0)
+        w = np.where(q0 == 0, 1.0, 2.0)[:, None]
+        Tx = np.ascontiguousarray(np.hstack([(w * C0).T, -(w * S0).T]))
+        Tg = np.ascontiguousarray(np.hstack([C.T, S.T]))
+        Tm = np.ascontiguousarray(np.vstack([C0, S0]))
+        out = _TABLES[key] = (Tq, Tx, Tg, Tm)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# terrain
+
+
+@_jit
+def _spline_weights(s, n):
+    """Cell index and the 4 cubic B-spline weights at positions ``s`` (clamped as the map)."""
+    N = s.size
+    idx = np.empty(N, np.int64)
+    w = np.empty((N, 4))
+    for a in range(N):
+        v = min(max(s[a], 0.0), n - 1.0)
+        i = min(int(v), n - 2)
+        f = v - i
+        f2 = f * f
+        f3 = f2 * f
+        idx[a] = i
+        w[a, 0] = (1.0 - 3.0 * f + 3.0 * f2 - f3) / 6.0
+        w[a, 1] = (4.0 - 6.0 * f2 + 3.0 * f3) / 6.0
+        w[a, 2] = (1.0 + 3.0 * f + 3.0 * f2 - 3.0 * f3) / 6.0
+        w[a, 3] = f3 / 6.0
+    return idx, w
+
+
+@_jit
+def terrain_depth(xs, ys, C, x0, y0, dx, dy, nx, ny, pad):
+    """``h[i, j] = h_d(xs[i], ys[j])``: the map's cubic B-spline (coefficients ``C[y, x]``,
+    ``pad`` padding nodes) on a tensor grid, as :meth:`TerrainGrid.depth`: ``Wx C' Wy'`` with
+    banded weight matrices over the support (two BLAS products)."""
+    iu, wu = _spline_weights((xs - x0) / dx, nx)
+    iv, wv = _spline_weights((ys - y0) / dy, ny)
+    c0 = iu.min() - 1 + pad
+    c1 = iu.max() + 3 + pad
+    r0 = iv.min() - 1 + pad
+    r1 = iv.max() + 3 + pad
+    Wx = np.zeros((xs.size, c1 - c0))
+    Wy = np.zeros((ys.size, r1 - r0))
+    for i in range(xs.size):
+        for a in range(4):
+            Wx[i, iu[i] + pad - 1 - c0 + a] = wu[i, a]
+    for j in range(ys.size):
+        for a in range(4):
+            Wy[j, iv[j] + pad - 1 - r0 + a] = wv[j, a]
+    Csub = np.ascontiguousarray(C[r0:r1, c0:c1])  # (rows y, cols x)
+    G = Wx @ np.ascontiguousarray(Csub.T)  # (len xs, rows)
+    return G @ np.ascontiguousarray(Wy.T)
+
+
+# ---------------------------------------------------------------------------------------------
+# series <-> grid (two gridded states)
+
+
+@_jit
+def to_grid2(m, Tq, Tx, scale):
+    """Real values on the ``M x M`` grid of the Hermitian series ``m`` (``(2K+1, 2K+1)``)."""
+    K = (m.shape[0] - 1) // 2
+    n = m.shape[1]
+    half = np.empty((K + 1, 2 * n))
+    for j in range(K + 1):
+        for q in range(n):
+            v = m[K + j, q]
+            half[j, q] = v.real
+            half[j, n + q] = v.imag
+    A = half @ Tq  # [A_r | A_i], (K+1, 2M)
+    M = Tx.shape[0]
+    B = np.empty((2 * (K + 1), M))
+    B[:K + 1] = A[:, :M]
+    B[K + 1:] = A[:, M:]
+    out = Tx @ B
+    out *= scale
+    return out
+
+
+@_jit
+def from_grid2(g, Tg, Tm, scale):
+    """Coefficients ``<g, phi_q>`` (FFT quadrature) of real grid values ``g`` (``M x M``)."""
+    n = Tg.shape[1] // 2
+    K = (n - 1) // 2
+    B = g @ Tg  # [B_c | B_s]: B_c = g C', B_s = g S'
+    P = Tm @ B  # [[C0 B_c, C0 B_s], [S0 B_c, S0 B_s]]
+    m = np.empty((n, n), np.complex128)
+    for j in range(K + 1):
+        for q in range(n):
+            re = P[j, q] - P[K + 1 + j, n + q]
+            im = -P[j, n + q] - P[K + 1 + j, q]
+            m[K + j, q] = complex(re * scale, im * scale)
+    for j in range(1, K + 1):
+        for q in range(n):
+            m[K - j, q] = m[K + j, n - 1 - q].conjugate()
+    return m
+
+
+# ---------------------------------------------------------------------------------------------
+# PFM-PSI update
+
+
+@_jit
+def grid_axes(lo, length, M):
+    """``SpectralBasis.axes()``: ``lo + L n / M``, ``n = 0..M-1``, per dimension."""
+    xs = np.empty(M)
+    ys = np.empty(M)
+    for i in range(M):
+        xs[i] = lo[0] + length[0] * i / M
+        ys[i] = lo[1] + length[1] * i / M
+    return xs, ys
+
+
+@_jit_fast
+def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
+    """Prior values, terrain log-likelihood terms and the prior's negative mass on the box
+    ``(lo, length)`` (``M = Tx.shape[0]`` points per dimension).
+
+    ``tpar = (x0, y0, dx, dy)``, ``ipar = (nx, ny, pad)`` describe the map. Returns
+    ``(values, W, V, neg_prior, tmax, vmin)`` with the log-likelihood
+    ``ll = W + tmax - log(V) / 2`` (``W <= 0``, still to be exponentiated): ``V = var +
+    sum_d (dh/dx_d)^2 r_d`` with ``r_d = (res_d / (2 h_d))^2 / 12``, ``res_d = inflation L_d /
+    (2K + 1)``, on twice the central differences (one-sided ones doubled) when ``inflation``
+    > 0, else ``V = var`` and ``ll = W + tmax`` (:meth:`GridLikelihood._terrain_loglik`).
+    """
+    M = Tx.shape[0]
+    K = (m.shape[0] - 1) // 2
+    scale = 1.0 / math.sqrt(length[0] * length[1])
+    cell = (length[0] / M) * (length[1] / M)
+    values = to_grid2(m, Tq, Tx, scale)
+    neg = 0.0
+    for i in range(M):
+        for j in range(M):
+            neg += min(values[i, j], 0.0)
+    xs, ys = grid_axes(lo, length, M)
+    h = terrain_depth(xs, ys, C, tpar[0], tpar[1], tpar[2], tpar[3], ipar[0], ipar[1],
+                      ipar[2])
+    W = np.empty((M, M))
+    V = np.empty((M, M))
+    inflate = inflation != 0.0
+    if inflate:  # twice the central differences (one-sided ones doubled)
+        rx = (length[0] / (2 * K + 1) * inflation / (2.0 * length[0] / M)) ** 2 / 12.0
+        ry = (length[1] / (2 * K + 1) * inflation / (2.0 * length[1] / M)) ** 2 / 12.0
+        for i in range(M):
+            i0, i1 = max(i - 1, 0), min(i + 1, M - 1)
+            f = 1.0 if (i1 - i0) == 2 else 2.0
+            for j in range(M):
+                g = f * (h[i1, j] - h[i0, j])
+                V[i, j] = g * g * rx + var
+            for j in range(1, M - 1):
+                g = h[i, j + 1] - h[i, j - 1]
+                V[i, j] += g * g * ry
+            g = 2.0 * (h[i, 1] - h[i, 0])
+            V[i, 0] += g * g * ry
+            g = 2.0 * (h[i, M - 1] - h[i, M - 2])
+            V[i, M - 1] += g * g * ry
+    else:
+        V[:] = var
+    tmax = -np.inf
+    vmin = np.inf
+    for i in range(M):
+        for j in range(M):
+            e = h[i, j] - z
+            t = -0.5 * (e * e) / V[i, j]
+            W[i, j] = t
+            tmax = max(tmax, t)
+            vmin = min(vmin, V[i, j])
+    W -= tmax
+    return values, W, V, -neg * cell, tmax, vmin
+
+
+@_jit_fast
+def prior_values(m, Tq, Tx, length):
+    """Grid values of the prior series and their negative mass (no grid measurement rows)."""
+    M = Tx.shape[0]
+    values = to_grid2(m, Tq, Tx, 1.0 / math.sqrt(length[0] * length[1]))
+    neg = 0.0
+    for i in range(M):
+        for j in range(M):
+            neg += min(values[i, j], 0.0)
+    return values, -neg * (length[0] / M) * (length[1] / M)
+
+
+@_jit
+def moments2(post, xs, ys):
+    """Mean and covariance of the weights ``post`` on the grid ``xs x ys``."""
+    return _moments2(post, xs, ys, False)
+
+
+@_jit
+def _moments2(post, xs, ys, clip):
+    """Mean and covariance of (signed, or clipped) weights on the tensor grid (eqs. 50-51)."""
+    Mx, My = post.shape
+    m0 = np.zeros(Mx)
+    m1 = np.zeros(My)
+    for i in range(Mx):
+        for j in range(My):
+            v = post[i, j]
+            if clip and v < 0.0:
+                v = 0.0
+            m0[i] += v
+            m1[j] += v
+    total = m0.sum()
+    mx = (m0 @ xs) / total
+    my = (m1 @ ys) / total
+    d0 = xs - mx
+    d1 = ys - my
+    c01 = 0.0
+    for i in range(Mx):
+        acc = 0.0
+        for j in range(My):
+            v = post[i, j]
+            if clip and v < 0.0:
+                v = 0.0
+            acc += v * d1[j]
+        c01 += d0[i] * acc
+    c01 /= total
+    mean = np.array([mx, my])
+    cov = np.array([[(m0 @ (d0 * d0)) / total, c01], [c01, (m1 @ (d1 * d1)) / total]])
+    return mean, cov
+
+
+@_jit
+def _floor_moments(post, xs, ys, mean, cov, floor0, floor1):
+    """The checks of :meth:`ProjectionFilter._grid_moments` on the signed moments ``(mean,
+    cov)``: moments of the clip when they are not valid, variances floored."""
+    c00, c11, c01 = cov[0, 0], cov[1, 1], cov[0, 1]
+    ok = (math.isfinite(c00 + c11 + 2.0 * c01) and c00 > floor0 and c11 > floor1
+          and c00 * c11 - c01 * c01 > 0.0)
+    if not ok:
+        mean, cov = _moments2(post, xs, ys, True)
+    v0, v1 = cov[0, 0], cov[1, 1]
+    if v0 >= floor0 and v1 >= floor1:
+        return mean, cov
+    d0 = math.sqrt(max(v0, floor0) / max(v0, 1e-300))
+    d1 = math.sqrt(max(v1, floor1) / max(v1, 1e-300))
+    cov[0, 0] *= d0 * d0
+    cov[1, 1] *= d1 * d1
+    cov[0, 1] *= d0 * d1
+    cov[1, 0] *= d0 * d1
+    return mean, cov
+
+
+@_jit
+def grid_moments2(post, xs, ys, floor0, floor1):
+    """:meth:`ProjectionFilter._grid_moments` for two gridded states."""
+    mean, cov = _moments2(post, xs, ys, False)
+    return _floor_moments(post, xs, ys, mean, cov, floor0, floor1)
+
+
+@_jit
+def _moments2_marginals(post, m0, m1, xs, ys):
+    """:func:`_moments2` (signed weights) from the marginals ``m0``, ``m1`` already summed."""
+    M0, M1 = post.shape
+    total = m0.sum()
+    mx = (m0 @ xs) / total
+    my = (m1 @ ys) / total
+    d0 = xs - mx
+    d1 = ys - my
+    c01 = 0.0
+    for i in range(M0):
+        acc = 0.0
+        for j in range(M1):
+            acc += post[i, j] * d1[j]
+        c01 += d0[i] * acc
+    c01 /= total
+    mean = np.array([mx, my])
+    cov = np.array([[(m0 @ (d0 * d0)) / total, c01], [c01, (m1 @ (d1 * d1)) / total]])
+    return mean, cov
+
+
+@_jit
+def bayes_posterior(values, E, V, vmin, lo, length):
+    """``post = values E sqrt(vmin / V)`` (``E = exp(W - tmax)``), its mass and moments.
+
+    Returns ``(post, Z, mean, cov, status)``: status 0 ok, 1 no posterior mass, 2 clipped
+    (a signed prior: the product of its clip was used, as in ``ProjectionFilter._bayes``), 3
+    non-finite moments. Moments as :meth:`ProjectionFilter._grid_moments` (variances floored
+    at ``(L/M)^2/12``).
+    """
+    M = values.shape[0]
+    cell = (length[0] / M) * (length[1] / M)
+    post = np.empty((M, M))
+    m0 = np.zeros(M)
+    m1 = np.zeros(M)
+    for i in range(M):
+        acc = 0.0
+        for j in range(M):
+            p = values[i, j] * (E[i, j] * math.sqrt(vmin / V[i, j]))
+            post[i, j] = p
+            acc += p
+            m1[j] += p
+        m0[i] = acc
+    Z = m0.sum() * cell
+    status = 0
+    xs, ys = grid_axes(lo, length, M)
+    floor0 = (length[0] / M) ** 2 / 12.0
+    floor1 = (length[1] / M) ** 2 / 12.0
+    if math.isfinite(Z) and Z > 0.0:
+        mean, cov = _moments2_marginals(post, m0, m1, xs, ys)
+    else:
+        s = 0.0
+        for i in range(M):
+            for j in range(M):
+                post[i, j] = max(post[i, j], 0.0)
+                s += post[i, j]
+        Z = s * cell
+        status = 2
+        if not (math.isfinite(Z) and Z > 0.0):
+            return post, Z, np.zeros(2), np.zeros((2, 2)), 1
+        mean, cov = _moments2(post, xs, ys, False)
+    mean, cov = _floor_moments(post, xs, ys, mean, cov, floor0, floor1)
+    if not math.isfinite(mean.sum() + cov.sum()):
+        status = 3
+    return post, Z, mean, cov, status
+
+
+@_jit_fast
+def posterior_coefficients(post, Tg, Tm, Tq, Tx, length, neg_limit):
+    """``m = <post, phi> / mass(post)`` (eqs. 45, 47), its grid values and negative mass.
+
+    When the negative mass is at most ``neg_limit`` (no positivity repair follows), ``m`` is
+    also made Hermitian and normalized (:func:`hermitian_normalize`); the returned mass is then
+    that of the Hermitian series, else NaN."""
+    M = post.shape[0]
+    sv = math.sqrt(length[0] * length[1])
+    cell = (length[0] / M) * (length[1] / M)
+    m = from_grid2(post, Tg, Tm, sv / M**2)
+    m /= post.sum() * cell
+    values = to_grid2(m, Tq, Tx, 1.0 / sv)
+    neg = 0.0
+    for i in range(M):
+        for j in range(M):
+            neg += min(values[i, j], 0.0)
+    neg = -neg * cell
+    mass = np.nan
+    if neg <= neg_limit:
+        mass = hermitian_normalize(m, sv)
+    return m, values, neg, mass
+
+
+@_jit
+def hermitian_normalize(m, sqrt_volume):
+    """``m = (m + conj(m_-q)) / 2`` in place; divide by the mass when it is finite and > 0.
+
+    Returns the mass (``ProjectionFilter._normalize``)."""
+    n0, n1 = m.shape
+    src = m.copy()
+    for i in range(n0):
+        for j in range(n1):
+            m[i, j] = 0.5 * (src[i, j] + src[n0 - 1 - i, n1 - 1 - j].conjugate())
+    c = m[(n0 - 1) // 2, (n1 - 1) // 2]
+    mass = sqrt_volume * c.real
+    if math.isfinite(mass) and mass > 0.0:
+        m /= mass
+    return mass
+
+
+@_jit
+def _sym(A):
+    n = A.shape[0]
+    out = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            out[i, j] = 0.5 * (A[i, j] + A[j, i])
+    return out
+
+
+@_jit
+def box(mean, cov, k_sigma, min_halfwidth):
+    """``ProjectionFilter._box``: ``(lo, length)`` of ``mean -+ max(k_sigma sigma, floor)``."""
+    n = mean.size
+    lo = np.empty(n)
+    length = np.empty(n)
+    for d in range(n):
+        sig = math.sqrt(max(cov[d, d], 0.0))
+        floor = max(min_halfwidth, 1e-9 * max(1.0, abs(mean[d])))
+        half = max(k_sigma * sig, floor)
+        lo[d] = mean[d] - half
+        length[d] = 2.0 * half
+    return lo, length
+
+
+# the kernels of the other two modules, reachable from here (imported last: they use the above)
+from uwcosim.filters.point_mass_kernels import (  # noqa: E402
+    grid_product_moments,
+    pm_finish,
+    pm_gauss_prefilter,
+    pm_grid_shift,
+    spline_shift_2d,
+    terrain_exponent,
+)
+from uwcosim.filters.projection_kalman import (  # noqa: E402
+    assemble,
+    available_bits,
+    kalman_increment,
+    kalman_update,
+    posterior_step,
+    predict_shift,
+    predict_step,
+    shift_decay,
+)
+
+__all__ = [
+    "ENABLED", "assemble", "available_bits", "bayes_posterior", "bayes_terms", "box",
+    "from_grid2", "grid_moments2", "grid_product_moments", "hermitian_normalize", "interrupted",
+    "kalman_increment", "kalman_update", "moments2", "pm_finish", "pm_gauss_prefilter",
+    "pm_grid_shift", "posterior_coefficients", "posterior_step", "predict_shift",
+    "predict_step", "prior_values", "shift_decay", "spline_shift_2d", "tables", "terrain_depth",
+    "terrain_exponent", "to_grid2",
+]

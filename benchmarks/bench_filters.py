@@ -29,10 +29,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from uwcosim.filters import particle, sigma_point, variational  # noqa: E402, F401
 from uwcosim.filters.base import ESTIMATORS  # noqa: E402
-from uwcosim.models.bathymetry import synthetic_bathymetry  # noqa: E402
-from uwcosim.models.fast_tan import accelerate  # noqa: E402
-from uwcosim.models.statespace import simulate as simulate_model  # noqa: E402
 from uwcosim.models.tan import tan_model  # noqa: E402
+from uwcosim.models.terrain import synthetic_bathymetry  # noqa: E402
+from uwcosim.models.trajectory import simulate as simulate_model  # noqa: E402
 
 STD0 = np.array([30.0, 30.0, 0.05, 0.05])
 START = np.array([2000.0, 18000.0, 0.5, 0.0])
@@ -44,7 +43,7 @@ def controls(k: int) -> np.ndarray:
 
 def simulate(model, steps: int, seed: int = 1):
     rng = np.random.default_rng(seed)
-    X, _, zs = simulate_model(model, START, controls, steps, rng)
+    X, _, zs = simulate_model(model.symbolic, START, controls, steps, rng)
     xs = X[1:]
     return xs, zs, START + STD0 * rng.standard_normal(4)
 
@@ -96,7 +95,7 @@ def main() -> None:
 
     terrain = synthetic_bathymetry(7)
     model = tan_model([0.01, 0.01, 1e-6, 1e-6], 0.05, 2.0, terrain)
-    fast = accelerate(model)
+    fast = model  # the closed-form TAN model (its CasADi form is model.symbolic)
     truth, zs, x0 = simulate(model, args.steps)
     print(f"TAN model, {args.steps} steps, best of {args.repeats} interleaved runs; "
           f"{platform.machine()}, Python {platform.python_version()}, numpy {np.__version__}")

@@ -30,9 +30,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from uwcosim.master.master import Master  # noqa: E402
-from uwcosim.models.bathymetry import synthetic_bathymetry  # noqa: E402
-from uwcosim.runner import run_scenario  # noqa: E402
+from uwcosim.models.terrain import synthetic_bathymetry  # noqa: E402
 from uwcosim.scenario import load_scenario  # noqa: E402
+from uwcosim.simulation import run_scenario  # noqa: E402
 
 SCENARIO = ROOT / "scenarios" / "tan_terrain.toml"
 STEPS = 5000

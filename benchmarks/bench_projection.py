@@ -44,17 +44,17 @@ def main(argv=None) -> int:
     import numpy as np
 
     import uwcosim.filters  # noqa: F401  (registers the estimators)
-    from uwcosim.filters import point_mass, projection  # noqa: F401
     from uwcosim.filters.base import ESTIMATORS
-    from uwcosim.models.bathymetry import synthetic_bathymetry
-    from uwcosim.models.statespace import simulate, wandering_heading
+    from uwcosim.filters.grid import point_mass, projection  # noqa: F401
     from uwcosim.models.tan import tan_model
+    from uwcosim.models.terrain import synthetic_bathymetry
+    from uwcosim.models.trajectory import simulate, wandering_heading
 
     model = tan_model([0.05, 0.05, 1e-4, 1e-4], 0.03, 2.0, terrain=synthetic_bathymetry(3))
     rng = np.random.default_rng(args.seed)
     x0 = np.array([3000.0, 16000.0, 0.5, 0.0])
     n = args.steps
-    X, U, Z = simulate(model, x0, wandering_heading(rng), n, rng, noise="held")
+    X, U, Z = simulate(model.symbolic, x0, wandering_heading(rng), n, rng, noise="held")
     P0 = np.diag([args.sigma0**2, args.sigma0**2, 0.05**2, 0.05**2])
     xe0 = x0 + rng.standard_normal(4) * np.sqrt(np.diag(P0))
 
@@ -69,7 +69,7 @@ def main(argv=None) -> int:
     print(f"TAN model, synthetic terrain, {n} steps of 1 s, sigma0 = {args.sigma0:g} m, "
           f"BLAS threads: {os.environ.get('OPENBLAS_NUM_THREADS', 'default')}, "
           f"{os.cpu_count()} CPUs")
-    from uwcosim.filters import projection_kernels
+    from uwcosim.filters.grid import projection_kernels
 
     print(f"compiled kernels (Numba): {'on' if projection_kernels.ENABLED else 'off'}")
     jobs = [(name, kw, ESTIMATORS.get(name)) for name, kw in runs]

@@ -23,9 +23,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from uwcosim.filters.base import ESTIMATORS  # noqa: E402
-from uwcosim.models.bathymetry import synthetic_bathymetry  # noqa: E402
-from uwcosim.models.statespace import simulate  # noqa: E402
 from uwcosim.models.tan import tan_model  # noqa: E402
+from uwcosim.models.terrain import synthetic_bathymetry  # noqa: E402
+from uwcosim.models.trajectory import simulate  # noqa: E402
 
 STD0 = np.array([30.0, 30.0, 0.05, 0.05])
 START = np.array([2000.0, 18000.0, 0.5, 0.0])
@@ -55,7 +55,7 @@ def main() -> None:
     args = ap.parse_args()
     model = tan_model([0.05, 0.05, 1e-5, 1e-5], 0.05, 1.0, synthetic_bathymetry(7))
     rng = np.random.default_rng(1)
-    _, _, zs = simulate(model, START, controls, args.steps, rng)
+    _, _, zs = simulate(model.symbolic, START, controls, args.steps, rng)
     x0 = START + STD0 * rng.standard_normal(4)
     us = [controls(k) for k in range(args.steps)]
     n = args.particles

@@ -38,7 +38,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from uwcosim.campaign import load_campaign  # noqa: E402
-from uwcosim.campaign.run import run_campaign  # noqa: E402
+from uwcosim.campaign.driver import run_campaign  # noqa: E402
 
 PAPER_S = {"pfm_psi": 25.257, "pf": 31.100, "ukf": 65.6224}
 SPEC = ROOT / "scenarios" / "campaigns" / "table1.toml"

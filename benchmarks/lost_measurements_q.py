@@ -5,7 +5,7 @@ ConstantVelocity FMU with white noise held over each step, whose discrete ``Q`` 
 diagonal ``1e-3 diag(1, 0.5, 1, 0.5)`` but also the off-diagonal ``q_v/2`` of a continuous
 white-noise-acceleration model. This script runs the experiment without FMUs, truth and filters
 on one discrete linear model, with either ``Q`` (``--q diagonal``: seed 001 Table 2 exactly,
-:func:`uwcosim.models.cv_model.seed001_model`; ``--q wna``: the FMU's ``Q``; ``--q both``):
+:func:`uwcosim.models.linear.seed001_model`; ``--q wna``: the FMU's ``Q``; ``--q both``):
 ``x' = F x + w``, ``w ~ N(0, Q)``, ``z = x + v``, ``v ~ N(0, I)``, ``P0 = I``, ``x0 ~ N(0, I)``
 around ``[0, 1, 0, 0.5]``, every measurement lost with probability ``a``. Runs are seeded
 (``--seed``, run ``i`` uses ``seed + i`` for the truth, the same for every filter).
@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from uwcosim.errors import FilterDivergence  # noqa: E402
 from uwcosim.filters.base import ESTIMATORS  # noqa: E402
-from uwcosim.models.cv_model import constant_velocity_model, seed001_model  # noqa: E402
+from uwcosim.models.linear import constant_velocity_model, seed001_model  # noqa: E402
 
 ESTIMATORS_SPEC = {
     "kf_skip": ("kf", {}),

@@ -16,7 +16,7 @@ distinct velocities, which the small velocity process noise cannot re-diversify:
 Set-up: the Table 1 terrain scenario's filter model (``scenarios/tan_terrain.toml``: process
 PSD ``[0.05, 0.05, 1e-5, 1e-5]``, DVL 0.05 m/s, depth 1 m, the seeded synthetic map, the heading
 and acceleration tables), truth simulated from that model without FMUs
-(:func:`uwcosim.models.statespace.simulate`), initial estimate drawn from ``N(truth, diag(30, 30,
+(:func:`uwcosim.models.trajectory.simulate`), initial estimate drawn from ``N(truth, diag(30, 30,
 0.05, 0.05)^2)`` once per run and shared by every filter. Run ``i`` uses seed ``--seed + i``.
 
 At each snapshot time the position marginal ``p(x, y | z_1..k)`` of every filter is put on one
@@ -50,10 +50,10 @@ from uwcosim.evaluation.density import (  # noqa: E402
     particles_on_grid,
 )
 from uwcosim.filters.base import ESTIMATORS  # noqa: E402
-from uwcosim.filters.point_mass import hellinger  # noqa: E402
-from uwcosim.models.bathymetry import synthetic_bathymetry  # noqa: E402
-from uwcosim.models.statespace import simulate  # noqa: E402
+from uwcosim.filters.grid.point_mass import hellinger  # noqa: E402
 from uwcosim.models.tan import tan_model  # noqa: E402
+from uwcosim.models.terrain import synthetic_bathymetry  # noqa: E402
+from uwcosim.models.trajectory import simulate  # noqa: E402
 
 STD0 = np.array([30.0, 30.0, 0.05, 0.05])
 FILTERS = {
@@ -117,7 +117,7 @@ def floor(ref: np.ndarray, axes, n: int, rng) -> float:
 
 def one_run(model, controls, start, args, seed: int) -> dict:
     rng = np.random.default_rng(seed)
-    _, _, zs = simulate(model, start, controls, args.duration, rng)
+    _, _, zs = simulate(model.symbolic, start, controls, args.duration, rng)
     x0 = start + STD0 * rng.standard_normal(4)
     P0 = np.diag(STD0**2)
     n_ref = args.reference_particles

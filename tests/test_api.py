@@ -21,11 +21,11 @@ except ImportError:  # pragma: no cover
 ROOT = Path(__file__).resolve().parents[1]
 API = ("Master", "System", "load_scenario", "run_scenario", "simulate", "evaluate", "report")
 #: modules whose every public function and method has type hints
-TYPED_MODULES = ("uwcosim", "uwcosim.runner", "uwcosim.evaluation.summary",
+TYPED_MODULES = ("uwcosim", "uwcosim.simulation", "uwcosim.evaluation.summary",
                  "uwcosim.evaluation.metrics", "uwcosim.report", "uwcosim.report.run_report",
                  "uwcosim.report.runfiles", "uwcosim.master.master", "uwcosim.master.system",
                  "uwcosim.master.measurement", "uwcosim.master.node", "uwcosim.runlog.recorder",
-                 "uwcosim.runlog.parquet", "uwcosim.estimation", "uwcosim.master.sources",
+                 "uwcosim.runlog.parquet", "uwcosim.estimator_bank", "uwcosim.master.sources",
                  "uwcosim.master.vartypes", "uwcosim.master.varmap", "uwcosim.master.solvers",
                  "uwcosim.master.proxy", "uwcosim.master.archive", "uwcosim.master.adapter",
                  "uwcosim.master.graph", "uwcosim.master.binding", "uwcosim.demo",

@@ -408,7 +408,7 @@ def test_a_failed_campaign_run_keeps_its_log_in_the_campaign_directory(tmp_path,
 def test_sources_do_not_depend_on_the_chunk_size(tan, tmp_path, monkeypatch):
     """Noise, losses and controls drawn in chunks: the same log for any chunk size."""
     from uwcosim.master import sources
-    from uwcosim.runner import run_scenario
+    from uwcosim.simulation import run_scenario
 
     sets = ["run.duration=60", 'estimators={ekf={type="ekf"}}',
             'sensors.depth.loss={model="gilbert_elliott", p_good_to_bad=0.2, '
@@ -436,7 +436,7 @@ def test_a_very_long_run_does_not_allocate_its_noise_up_front(tan):
 
 
 def test_broken_covariances_are_flagged_as_divergence(tan, tmp_path):
-    from uwcosim.runner import run_scenario
+    from uwcosim.simulation import run_scenario
 
     res = run_scenario(tan(["run.duration=30", "model.q_psd=[1e30,1e30,1e30,1e30]",
                             'estimators={ekf={type="ekf"}, pf={type="pf", n_particles=200},'

@@ -8,7 +8,7 @@ import pytest
 from scipy import ndimage
 
 from uwcosim.errors import MapError
-from uwcosim.models.bathymetry import Bathymetry, load_map, synthetic_bathymetry
+from uwcosim.models.terrain import Bathymetry, load_map, synthetic_bathymetry
 
 
 @pytest.fixture(scope="module")

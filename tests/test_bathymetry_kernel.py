@@ -12,7 +12,7 @@ import pytest
 from fmpy import simulate_fmu
 
 from uwcosim.fmu.build import build_map_kernel
-from uwcosim.models.bathymetry import Bathymetry, synthetic_bathymetry
+from uwcosim.models.terrain import Bathymetry, synthetic_bathymetry
 
 try:
     from fmu_fixtures import CS, ME, Instance, fmu_dir, fmu_path

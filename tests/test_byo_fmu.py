@@ -15,9 +15,9 @@ from uwcosim.errors import ScenarioError
 from uwcosim.fmu.check import check_fmu
 from uwcosim.master.master import Master
 from uwcosim.master.varmap import parse_offset, unit_conversion
-from uwcosim.models.bathymetry import synthetic_bathymetry
+from uwcosim.models.terrain import synthetic_bathymetry
 from uwcosim.runlog import read_log
-from uwcosim.runner import run_scenario
+from uwcosim.simulation import run_scenario
 
 try:
     from thirdparty_fmus import FMI3_DIR, PYFMU_DIR, fmi3_vehicle, pythonfmu_vehicle

@@ -11,7 +11,7 @@ import pytest
 
 from uwcosim.errors import ScenarioError
 from uwcosim.runlog import read_log
-from uwcosim.runner import run_scenario
+from uwcosim.simulation import run_scenario
 
 try:
     from thirdparty_fmus import PYFMU_DIR, pythonfmu_vehicle

@@ -9,7 +9,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from uwcosim.campaign import load_campaign
-from uwcosim.campaign.run import run_campaign
+from uwcosim.campaign.driver import run_campaign
 from uwcosim.campaign.spec import run_seed
 from uwcosim.errors import ScenarioError
 

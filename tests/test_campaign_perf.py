@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from uwcosim.campaign import load_campaign
+from uwcosim.campaign.driver import run_campaign
 from uwcosim.campaign.execute import SessionStats, _eta_text, session_line
-from uwcosim.campaign.run import run_campaign
 from uwcosim.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]

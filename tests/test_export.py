@@ -13,8 +13,8 @@ from scipy.io import loadmat
 from uwcosim.cli import main
 from uwcosim.export import matlab_names
 from uwcosim.runlog import read_log
-from uwcosim.runner import run_scenario
 from uwcosim.scenario import load_scenario
+from uwcosim.simulation import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -14,9 +14,9 @@ import pytest
 from uwcosim.errors import FMUError
 from uwcosim.master.master import Master
 from uwcosim.master.proxy import ProxyAdapter
-from uwcosim.models.bathymetry import synthetic_bathymetry
+from uwcosim.models.terrain import synthetic_bathymetry
 from uwcosim.runlog import read_log
-from uwcosim.runner import run_scenario
+from uwcosim.simulation import run_scenario
 
 FAULT_CHAIN = [
     'connections=[["vehicle.vx", "dvl.vx"], ["vehicle.vy", "dvl.vy"], '

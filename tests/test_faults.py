@@ -15,7 +15,7 @@ from uwcosim.errors import FilterDivergence, FMUError, RunInterrupted, ScenarioE
 from uwcosim.filters import ESTIMATORS
 from uwcosim.filters.kalman import ExtendedKalmanFilter
 from uwcosim.runlog import read_log
-from uwcosim.runner import run_scenario
+from uwcosim.simulation import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"

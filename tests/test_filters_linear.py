@@ -17,9 +17,9 @@ from uwcosim.filters.sigma_point import (
     CubatureUnscentedKalmanFilter,
     UnscentedKalmanFilter,
 )
-from uwcosim.models.constant_velocity import constant_velocity_ode
-from uwcosim.models.cv_model import constant_velocity_model, measurement_matrix
-from uwcosim.models.statespace import CasadiModel
+from uwcosim.models.casadi_model import CasadiModel
+from uwcosim.models.cv_equations import constant_velocity_ode
+from uwcosim.models.linear import constant_velocity_model, measurement_matrix
 
 NAMES = ("gps.px_m", "gps.py_m", "dvl.vx_m")
 R3 = np.array([[4.0, 0.6, 0.0], [0.6, 2.0, 0.01], [0.0, 0.01, 0.04]])  # correlated on purpose

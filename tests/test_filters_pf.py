@@ -10,7 +10,7 @@ from uwcosim.filters import particle, sigma_point, variational  # noqa: F401  (r
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.filters.kalman import KalmanFilter
 from uwcosim.filters.particle import RESAMPLERS, ParticleFilter
-from uwcosim.models.cv_model import constant_velocity_model
+from uwcosim.models.linear import constant_velocity_model
 
 SCHEMES = ["systematic", "stratified", "residual", "multinomial"]
 X0 = np.array([0.0, 1.0, 0.0, -0.5])
@@ -248,11 +248,10 @@ def test_moments_are_the_weighted_mean_and_covariance():
 
 
 def test_model_noise_factor_is_a_factor_of_Q():
-    from uwcosim.models.bathymetry import synthetic_bathymetry
-    from uwcosim.models.fast_tan import accelerate
     from uwcosim.models.tan import tan_model
+    from uwcosim.models.terrain import synthetic_bathymetry
 
-    fast = accelerate(tan_model([0.01, 0.02, 1e-6, 2e-6], 0.05, 2.0, synthetic_bathymetry(3)))
+    fast = (tan_model([0.01, 0.02, 1e-6, 2e-6], 0.05, 2.0, synthetic_bathymetry(3)))
     for u, dt in (([0.3, 0.001], 1.0), ([-2.0, 0.0], 0.5), ([0.3, 0.001], 1.0)):
         L = fast.Q_factor(None, np.array(u), dt)
         np.testing.assert_allclose(L @ L.T, fast.Q(None, np.array(u), dt), rtol=1e-12,

@@ -11,12 +11,12 @@ import pytest
 from uwcosim.errors import ScenarioError
 from uwcosim.evaluation.density import gaussian_on_grid, particles_on_grid
 from uwcosim.filters.base import ESTIMATORS
-from uwcosim.filters.point_mass import hellinger
+from uwcosim.filters.grid.point_mass import hellinger
 from uwcosim.filters.rbpf import RaoBlackwellizedPF
 from uwcosim.filters.regularized import RegularizedPF, optimal_bandwidth
-from uwcosim.models.bathymetry import synthetic_bathymetry
-from uwcosim.models.statespace import simulate
 from uwcosim.models.tan import tan_model
+from uwcosim.models.terrain import synthetic_bathymetry
+from uwcosim.models.trajectory import simulate
 
 START = np.array([2000.0, 18000.0, 0.5, 0.0])
 STD0 = np.array([30.0, 30.0, 0.05, 0.05])
@@ -45,7 +45,7 @@ def test_rbpf_equals_the_kalman_filter_without_terrain():
     particles its mean and variances must agree with the KF's within Monte Carlo error."""
     model = tan_model([0.05, 0.05, 1e-3, 1e-3], 0.05)  # noisy velocities: every term matters
     rng = np.random.default_rng(1)
-    _, _, zs = simulate(model, START, controls, 60, rng)
+    _, _, zs = simulate(model.symbolic, START, controls, 60, rng)
     x0 = START + STD0 * rng.standard_normal(4)
     kf = ESTIMATORS.get("ekf")(model, x0, np.diag(STD0**2))  # the KF on a linear model
     rb = RaoBlackwellizedPF(model, x0, np.diag(STD0**2), n_particles=20000, seed=1)
@@ -68,7 +68,7 @@ def test_rbpf_position_marginal_is_the_point_mass_posterior(terrain_model):
     20000 exact draws from the grid density is (the estimator's own floor), plus 0.05; the EKF's
     Gaussian is not."""
     rng = np.random.default_rng(3)
-    _, _, zs = simulate(terrain_model, START, controls, 20, rng)
+    _, _, zs = simulate(terrain_model.symbolic, START, controls, 20, rng)
     x0 = START + STD0 * rng.standard_normal(4)
     P0 = np.diag(STD0**2)
     pm = ESTIMATORS.get("point_mass")(terrain_model, x0, P0, n_points=151)
@@ -102,7 +102,7 @@ def test_rbpf_settings_and_split(terrain_model):
 
 def test_rbpf_and_rpf_are_seeded_and_track(terrain_model):
     rng = np.random.default_rng(5)
-    xs, _, zs = simulate(terrain_model, START, controls, 150, rng)
+    xs, _, zs = simulate(terrain_model.symbolic, START, controls, 150, rng)
     x0 = START + STD0 * rng.standard_normal(4)
 
     def final(name, seed, **kw):

@@ -4,7 +4,6 @@ divergence on NaN."""
 
 from __future__ import annotations
 
-import casadi as ca
 import numpy as np
 import pytest
 
@@ -12,11 +11,10 @@ from uwcosim.errors import FilterDivergence
 from uwcosim.filters import particle, sigma_point, variational  # noqa: F401  (register)
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.filters.kalman import ExtendedKalmanFilter
-from uwcosim.models.bathymetry import synthetic_bathymetry
-from uwcosim.models.fast_tan import FastTANModel, accelerate
-from uwcosim.models.statespace import CasadiModel, simulate
-from uwcosim.models.tan import tan_model
-from uwcosim.models.vehicle import STATE_NAMES, vehicle_ode
+from uwcosim.models.casadi_model import CasadiModel
+from uwcosim.models.tan import TANModel, tan_model
+from uwcosim.models.terrain import synthetic_bathymetry
+from uwcosim.models.trajectory import simulate
 
 Q_PSD = [0.01, 0.01, 1e-6, 1e-6]
 STD0 = np.array([30.0, 30.0, 0.05, 0.05])
@@ -42,7 +40,7 @@ def controls(k: int) -> np.ndarray:
 def trajectory(model):
     """Truth from the CasADi model: x' = f(x, u) + w, w ~ N(0, Q); z = h(x) + v."""
     rng = np.random.default_rng(42)
-    X, _, zs = simulate(model, START, controls, STEPS, rng)
+    X, _, zs = simulate(model.symbolic, START, controls, STEPS, rng)
     xs = X[1:]
     return xs, zs, START + STD0 * rng.standard_normal(4)
 
@@ -63,8 +61,8 @@ def terrain_inside(model, X):
 
 
 def test_fast_model_equals_casadi(model):
-    fast = accelerate(model)
-    assert isinstance(fast, FastTANModel) and accelerate(model) is fast
+    fast, model = model, model.symbolic  # the closed form against its CasADi form
+    assert isinstance(fast, TANModel) and isinstance(model, CasadiModel)
     rng = np.random.default_rng(0)
     X = np.column_stack([rng.uniform(0, 25000, 500), rng.uniform(0, 25000, 500),
                          rng.normal(0, 1, 500), rng.normal(0, 1, 500)])
@@ -89,21 +87,21 @@ def test_fast_model_equals_casadi(model):
         np.testing.assert_allclose(fast.H(x), model.H(x), rtol=1e-12, atol=1e-12)
 
 
-def test_other_models_are_not_accelerated(terrain):
-    x, u, w = ca.SX.sym("x", 4), ca.SX.sym("u", 2), ca.SX.sym("w", 4)
-    ode = ca.Function("ode", [x, u, w], [vehicle_ode()(x, u, w) + ca.vertcat(0, 0, 0.1, 0)])
-    xs = ca.MX.sym("x", 4)
-    h = ca.Function("h", [xs], [xs[2:4]])
-    other = CasadiModel(ode, h, Q_PSD, [1.0, 1.0], STATE_NAMES, ("a", "b"))
-    other.terrain = None  # looks like a TAN model, is not: the check catches it
-    assert accelerate(other) is other
-    no_map = tan_model(Q_PSD, 0.05)
-    assert isinstance(accelerate(no_map), FastTANModel)
+def test_filters_use_the_model_they_are_given(model):
+    """No silent swap: a filter runs the implementation the model factory chose (the closed
+    form of tan_model, or the CasADi form when given that); the grid filters analyse the
+    CasADi form of either."""
+    P0 = np.diag(STD0**2)
+    assert ExtendedKalmanFilter(model, START, P0).model is model
+    assert ExtendedKalmanFilter(model.symbolic, START, P0).model is model.symbolic
+    pm = ESTIMATORS.get("point_mass")(model, START, P0)
+    assert pm.model is model.symbolic
+    assert isinstance(tan_model(Q_PSD, 0.05), TANModel)
 
 
 @pytest.mark.parametrize("fast", [False, True], ids=["casadi", "numpy"])
 def test_ekf_jacobians_equal_finite_differences(model, fast):
-    m = accelerate(model) if fast else model
+    m = model if fast else model.symbolic
     rng = np.random.default_rng(3)
     for _ in range(5):
         x = np.array([rng.uniform(2000, 23000), rng.uniform(2000, 23000), *rng.normal(0, 1, 2)])
@@ -177,7 +175,7 @@ def test_ekf_diagnostics_and_masks(model):
 
 
 def test_fast_terrain_point_gradient_and_fallback(terrain, monkeypatch):
-    from uwcosim.models import fast_tan
+    from uwcosim.models import tan as fast_tan
 
     ft = fast_tan.FastTerrain(terrain)
     rng = np.random.default_rng(5)

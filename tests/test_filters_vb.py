@@ -10,11 +10,11 @@ from uwcosim.filters import particle, sigma_point, variational  # noqa: F401  (r
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.filters.kalman import KalmanFilter
 from uwcosim.filters.variational import (
-    QuadraticInterpolationVBF,
+    ExtrapolatingVBAKF,
     VariationalBayesAKF,
     vb_update,
 )
-from uwcosim.models.cv_model import seed001_model
+from uwcosim.models.linear import seed001_model
 
 X0 = np.array([0.0, 1.0, 0.0, 0.5])
 
@@ -144,7 +144,7 @@ def test_partial_measurement_updates_the_block_and_keeps_the_dof():
 def test_qivbf_equals_vbakf_without_losses_and_extrapolates_lost_components():
     model = seed001_model()
     xs, zs = simulate(model, np.eye(4), 60, seed=3)
-    qi = QuadraticInterpolationVBF(model, X0, np.eye(4))
+    qi = ExtrapolatingVBAKF(model, X0, np.eye(4))
     vb = VariationalBayesAKF(model, X0, np.eye(4))
     for k in range(30):
         for est in (qi, vb):

@@ -12,8 +12,8 @@ import pytest
 from tests.browser import find_chromium, load_page
 from uwcosim.cli import main
 from uwcosim.runlog import read_log
-from uwcosim.runner import run_scenario
 from uwcosim.scenario import load_scenario
+from uwcosim.simulation import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -52,7 +52,7 @@ def run_dir(tmp_path_factory, project_fmus) -> Path:
 @pytest.fixture(scope="module")
 def campaign_dir(tmp_path_factory, project_fmus) -> Path:
     from uwcosim.campaign import load_campaign
-    from uwcosim.campaign.run import run_campaign
+    from uwcosim.campaign.driver import run_campaign
 
     tmp = tmp_path_factory.mktemp("campaign")
     spec = tmp / "c.toml"

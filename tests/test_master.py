@@ -9,9 +9,9 @@ import pytest
 
 from tests.conftest import SCENARIOS
 from uwcosim.master.master import Master
-from uwcosim.models.bathymetry import synthetic_bathymetry
+from uwcosim.models.terrain import synthetic_bathymetry
 from uwcosim.runlog import read_log
-from uwcosim.runner import run_scenario
+from uwcosim.simulation import run_scenario
 
 VARIANTS = [
     pytest.param("AUVKinematics_fmi2.fmu", "cs", id="fmi2-cs"),

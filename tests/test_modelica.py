@@ -3,7 +3,7 @@
 rumoca 0.10 (the Python Modelica compiler used here) simulates a compiled model with diffsol;
 it cannot take time-varying inputs at ``simulate()`` and this wheel cannot export FMUs, so the
 vehicle is exercised through ``UWCoSim.Examples.VehicleHarness``, whose inputs are equations of
-time. Its trajectory is compared with the CasADi ODE of :mod:`uwcosim.models.vehicle`
+time. Its trajectory is compared with the CasADi ODE of :mod:`uwcosim.models.auv_equations`
 integrated by scipy with the same closed-form inputs.
 """
 
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from uwcosim.models.vehicle import vehicle_ode
+from uwcosim.models.auv_equations import vehicle_ode
 
 rumoca = pytest.importorskip("rumoca", reason="rumoca (Modelica compiler) not installed")
 

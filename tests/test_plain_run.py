@@ -204,7 +204,7 @@ def test_campaign_workers_leave_no_folder(project_fmus, tmp_path, private_tmp):
     """Campaign workers keep one master per scenario for many runs (instances reset, not
     unzipped again) and clean up when the pool shuts down."""
     from uwcosim.campaign import load_campaign
-    from uwcosim.campaign.run import run_campaign
+    from uwcosim.campaign.driver import run_campaign
 
     spec = tmp_path / "c.toml"
     spec.write_text(f'name = "c"\nseed = 1\nruns = 3\n[[variants]]\nname = "plain"\n'

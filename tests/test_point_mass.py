@@ -8,13 +8,13 @@ import pytest
 
 from uwcosim.errors import ScenarioError
 from uwcosim.filters.base import ESTIMATORS
-from uwcosim.filters.point_mass import (
+from uwcosim.filters.grid.point_mass import (
     PointMassFilter,
     gaussian_convolve,
     hellinger,
     shift_blur,
 )
-from uwcosim.models.statespace import CasadiModel
+from uwcosim.models.casadi_model import CasadiModel
 from uwcosim.models.tan import tan_model
 
 

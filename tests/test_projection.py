@@ -18,11 +18,12 @@ import pytest
 
 from uwcosim.errors import ScenarioError
 from uwcosim.filters.base import ESTIMATORS
-from uwcosim.filters.point_mass import PointMassFilter, gaussian_convolve, hellinger
-from uwcosim.filters.projection import ProjectionFilter
-from uwcosim.models.bathymetry import synthetic_bathymetry
-from uwcosim.models.statespace import CasadiModel, simulate, wandering_heading
+from uwcosim.filters.grid.point_mass import PointMassFilter, gaussian_convolve, hellinger
+from uwcosim.filters.grid.projection import ProjectionFilter
+from uwcosim.models.casadi_model import CasadiModel
 from uwcosim.models.tan import tan_model
+from uwcosim.models.terrain import synthetic_bathymetry
+from uwcosim.models.trajectory import simulate, wandering_heading
 
 EXACT = {"resolution_inflation": 0.0}  # exact Bayes products (no representation inflation)
 
@@ -154,9 +155,9 @@ Q_PSD = [0.05, 0.05, 1e-4, 1e-4]
 
 
 def simulate_tan(model, n: int, rng: np.random.Generator, x0):
-    """Truth of the model itself (:func:`~uwcosim.models.statespace.simulate`) on a wandering
+    """Truth of the model itself (:func:`~uwcosim.models.trajectory.simulate`) on a wandering
     heading with a slowly varying acceleration."""
-    return simulate(model, x0, wandering_heading(rng), n, rng, noise="held")
+    return simulate(model.symbolic, x0, wandering_heading(rng), n, rng, noise="held")
 
 
 def run_filters(model, names, X, U, Z, x0, P0):
@@ -232,7 +233,7 @@ def test_tan_table1_divergences_regression(tan, tmp_path, run, seed, duration):
     (0/0), and before that had trimmed the tails of an elongated posterior until the box missed
     the truth. Now the filter runs on, consistent, and (run 11) as accurate as the point-mass
     reference: measured RMSE 21.3 against 18.3 m, ANEES 1.3 (run 85: ANEES 1.0)."""
-    from uwcosim.runner import run_scenario
+    from uwcosim.simulation import run_scenario
 
     over = [f"run.duration={duration}", "output.density_snapshots=[]",
             'estimators={pfm_psi={type="pfm_psi", K=10}, point_mass={type="point_mass"}}']

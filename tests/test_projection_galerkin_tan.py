@@ -19,11 +19,11 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from uwcosim.filters.point_mass import gaussian_convolve, hellinger
-from uwcosim.filters.projection import ProjectionFilter
-from uwcosim.filters.projection_model import Partition
-from uwcosim.models.statespace import CasadiModel
-from uwcosim.models.vehicle import STATE_NAMES
+from uwcosim.filters.grid.partition import Partition
+from uwcosim.filters.grid.point_mass import gaussian_convolve, hellinger
+from uwcosim.filters.grid.projection import ProjectionFilter
+from uwcosim.models.auv_equations import STATE_NAMES
+from uwcosim.models.casadi_model import CasadiModel
 
 QX, QV, A, DT = 0.05, 0.02, 0.1, 2.0
 

@@ -13,13 +13,13 @@ import sys
 import numpy as np
 import pytest
 
-from uwcosim.filters import point_mass as pm
-from uwcosim.filters import projection_kernels as pk
-from uwcosim.filters import projection_ops as po
 from uwcosim.filters.base import ESTIMATORS
-from uwcosim.filters.projection_likelihood import TerrainGrid
-from uwcosim.models.bathymetry import synthetic_bathymetry
+from uwcosim.filters.grid import point_mass as pm
+from uwcosim.filters.grid import projection_kernels as pk
+from uwcosim.filters.grid import spectral as po
+from uwcosim.filters.grid.likelihood import TerrainGrid
 from uwcosim.models.tan import tan_model
+from uwcosim.models.terrain import synthetic_bathymetry
 
 pytestmark = pytest.mark.skipif(not pk.ENABLED, reason="Numba not installed or disabled")
 
@@ -152,7 +152,7 @@ def test_filters_same_with_and_without_kernels(terrain, name, settings, steps):
 
 def test_environment_switch_disables_kernels():
     env = dict(os.environ, UWCOSIM_NUMBA="0")
-    code = "from uwcosim.filters import projection_kernels as pk; print(pk.ENABLED)"
+    code = "from uwcosim.filters.grid import projection_kernels as pk; print(pk.ENABLED)"
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "False"

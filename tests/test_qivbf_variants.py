@@ -8,7 +8,7 @@ import pytest
 
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.filters.policies import Extrapolate, noise_gain
-from uwcosim.models.cv_model import seed001_model
+from uwcosim.models.linear import seed001_model
 
 
 def test_noise_gain_of_one_step_after_three_is_19():

@@ -18,8 +18,8 @@ import pytest
 from uwcosim.cli import main
 from uwcosim.errors import FMUError
 from uwcosim.runlog import read_log
-from uwcosim.runner import run_scenario
 from uwcosim.scenario import load_scenario
+from uwcosim.simulation import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "tan_terrain.toml"
@@ -138,7 +138,7 @@ def test_report_of_a_folder_that_is_no_run(tmp_path, capsys):
 
 
 def test_map_coefficients_read_back(short_run):
-    from uwcosim.models.bathymetry import read_coefficients, synthetic_bathymetry
+    from uwcosim.models.terrain import read_coefficients, synthetic_bathymetry
 
     b = read_coefficients(short_run / "map.bin")
     ref = synthetic_bathymetry(7)

@@ -10,7 +10,7 @@ import numpy as np
 from uwcosim.fmu import build_fmu, specs
 from uwcosim.fmu.specs import ModelSpec, Var
 from uwcosim.integrators import rk4
-from uwcosim.models.vehicle import rk4_step
+from uwcosim.models.auv_equations import rk4_step
 
 try:
     from fmu_fixtures import CS, Instance

@@ -21,8 +21,8 @@ from uwcosim.errors import ScenarioError
 from uwcosim.master.adapter import sha256_file
 from uwcosim.master.master import Master
 from uwcosim.runlog import read_log
-from uwcosim.runner import run_scenario
 from uwcosim.scenario import load_scenario
+from uwcosim.simulation import run_scenario
 from uwcosim.ssp import read_ssp
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -233,7 +233,7 @@ def test_nested_ssp_runs_through_the_command_line(project_fmus, tmp_path, capsys
     path = nested_ssp(tmp_path / "n.ssp", project_fmus)
     monkeypatch.chdir(tmp_path)
     # the sounder reads the map file named by the root's parameter set
-    from uwcosim.models.bathymetry import synthetic_bathymetry
+    from uwcosim.models.terrain import synthetic_bathymetry
 
     synthetic_bathymetry(7).write_coefficients(tmp_path / "root.bin")
     assert main(["run", str(path), "--set", "run.step=0.5", "--out", "r"]) == 0

@@ -25,9 +25,9 @@ _EXPORTS = {
     "Master": "uwcosim.master.master",
     "System": "uwcosim.master.system",
     "load_scenario": "uwcosim.scenario.load",
-    "run_scenario": "uwcosim.runner",
-    "simulate": "uwcosim.runner",
-    "RunResult": "uwcosim.runner",
+    "run_scenario": "uwcosim.simulation",
+    "simulate": "uwcosim.simulation",
+    "RunResult": "uwcosim.simulation",
     "evaluate": "uwcosim.evaluation.summary",
     "report": "uwcosim.report",
 }
@@ -40,8 +40,8 @@ if TYPE_CHECKING:
     from uwcosim.master.master import Master
     from uwcosim.master.system import System
     from uwcosim.report import report
-    from uwcosim.runner import RunResult, run_scenario, simulate
     from uwcosim.scenario.load import load_scenario
+    from uwcosim.simulation import RunResult, run_scenario, simulate
 
 
 def __getattr__(name: str) -> object:

@@ -44,8 +44,8 @@ def _print_result(result) -> None:
 
 
 def _cmd_run(args) -> int:
-    from uwcosim.runner import prepare_out_dir, run_scenario
     from uwcosim.scenario import load_scenario
+    from uwcosim.simulation import prepare_out_dir, run_scenario
 
     loaded = load_scenario(args.scenario, args.set or [], overrides_base=Path.cwd())
     out = Path(args.out) if args.out else Path("runs") / loaded.path.stem
@@ -218,7 +218,7 @@ def _cmd_ssp_export(args) -> int:
 
 def _cmd_campaign(args) -> int:
     from uwcosim.campaign import load_campaign
-    from uwcosim.campaign.run import run_campaign
+    from uwcosim.campaign.driver import run_campaign
 
     campaign = load_campaign(args.spec)
     out = Path(args.out) if args.out else Path("runs") / f"campaign_{campaign.path.stem}"

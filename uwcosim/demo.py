@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from uwcosim.runner import RunResult
+    from uwcosim.simulation import RunResult
 
 DEMO_SCENARIO = "tan_terrain.toml"
 DEMO_FMUS = ("AUVKinematics", "DVL", "DepthSounder")
@@ -44,8 +44,8 @@ def prepare_cache(cache: Path | None = None) -> Path:
 def run_demo(out: Path, overrides: Sequence[str] = (), cache: Path | None = None,
              seed: int | None = None) -> RunResult:
     """Prepare the cache and run the TAN scenario into ``out``; the :class:`RunResult`."""
-    from uwcosim.runner import run_scenario
     from uwcosim.scenario import load_scenario
+    from uwcosim.simulation import run_scenario
 
     scenario = prepare_cache(cache)
     loaded = load_scenario(scenario, list(overrides), overrides_base=Path.cwd())

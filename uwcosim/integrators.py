@@ -2,7 +2,7 @@
 
 :func:`rk4` is plain arithmetic on ``x`` and ``deriv(t, x)``, so the same code integrates
 numbers (numpy: the master's model-exchange fast path, :mod:`uwcosim.master.solvers`) and
-symbols (CasADi: the filters' discrete transition, :func:`uwcosim.models.vehicle.rk4_step`).
+symbols (CasADi: the filters' discrete transition, :func:`uwcosim.models.auv_equations.rk4_step`).
 The C form (``rk4`` in ``uwcosim/fmu/templates/uwc_model.c``, the FMUs' co-simulation step)
 is tested against it (``tests/test_rk4.py``).
 """

@@ -2,7 +2,7 @@
 
 A call into an FMU's shared library cannot be interrupted by a Python signal handler: the
 handler only runs when the main thread comes back to Python bytecode, which a hanging FMU never
-does. So while a run is going (:func:`run_guard`, entered by :func:`uwcosim.runner.simulate`
+does. So while a run is going (:func:`run_guard`, entered by :func:`uwcosim.simulation.simulate`
 in the main thread):
 
 - SIGINT (Ctrl-C), SIGTERM and SIGHUP get a handler that only *records* the signal; the C-level

@@ -51,8 +51,8 @@ def _reusable(adapter) -> bool:
 
 def execute_run(task: Task) -> dict:
     """Run one task and return its record (never raises: errors are recorded)."""
-    from uwcosim.runner import run_scenario
     from uwcosim.scenario import load_scenario
+    from uwcosim.simulation import run_scenario
 
     record = {"variant": task.variant, "run": task.run, "seed": task.seed, "status": "ok",
               "error": "", "estimators": {}}

@@ -1,9 +1,9 @@
 """The evaluate stage: ``summary.json`` of a run, from the files of its run directory alone.
 
 :func:`evaluate` reads ``log.parquet`` (or its journal after ``kill -9``) with its ``uwcosim``
-metadata, and ``simulation.json`` (written by the simulate stage, :func:`uwcosim.runner.simulate`:
-status, error, termination, wall times, the estimators' time per step and divergence reasons,
-notes). No scenario is loaded and no FMU is touched.
+metadata, and ``simulation.json`` (written by the simulate stage,
+:func:`uwcosim.simulation.simulate`: status, error, termination, wall times, the estimators'
+time per step and divergence reasons, notes). No scenario is loaded and no FMU is touched.
 
 Per estimator: position and velocity RMSE of the run (seed 000 eq. 56 with ST = 1: the root of
 the time average of the squared error, over steps 1..K), per-axis RMSE

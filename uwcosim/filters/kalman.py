@@ -4,8 +4,9 @@
 (the subset of measurement names a filter uses), per-step diagnostics (reset when a step begins,
 i.e. at ``predict``, or at ``update`` when no ``predict`` came before it; ``pd_repairs`` always,
 ``nis``/``nis_dof`` after an update with data, plus each filter's own), finiteness checks that
-raise :class:`~uwcosim.errors.FilterDivergence`, and the numpy fast path of the TAN model
-(:func:`uwcosim.models.fast_tan.accelerate`, checked against CasADi).
+raise :class:`~uwcosim.errors.FilterDivergence`. A filter uses the model it is given: which
+implementation that is (CasADi, or the closed-form TAN model) is chosen where the model is built
+(:mod:`uwcosim.models.factory`).
 
 :class:`KalmanFilter` (``kf``) needs a linear model (``model.linear``);
 :class:`ExtendedKalmanFilter` (``ekf``) linearizes with the model's exact Jacobians (on a linear
@@ -26,7 +27,6 @@ from uwcosim.filters.numerics import (
     nis,
     symmetrize,
 )
-from uwcosim.models.fast_tan import accelerate
 
 
 def measurement_use(model, measurements: list[str] | None) -> np.ndarray:
@@ -41,10 +41,10 @@ def measurement_use(model, measurements: list[str] | None) -> np.ndarray:
 
 
 class FilterBase(Estimator):
-    """Shared plumbing: measurement subset, step diagnostics, divergence checks, fast model."""
+    """Shared plumbing: measurement subset, step diagnostics, divergence checks."""
 
     def __init__(self, model, x0, P0, measurements: list[str] | None = None) -> None:
-        super().__init__(accelerate(model), x0, P0)
+        super().__init__(model, x0, P0)
         self._use = measurement_use(model, measurements)
         self._predicted = False
         self._R_blocks: dict[bytes, np.ndarray] = {}

@@ -17,7 +17,7 @@ Speed (``benchmarks/bench_filters.py``: the 1000-particle step of the TAN model 
 
 * particles are stored state-major (``(nx, N)``, every state a contiguous row); the model's
   batch functions get column-major views and the numpy fast path of the TAN model is used
-  (:mod:`uwcosim.models.fast_tan`);
+  (:mod:`uwcosim.models.tan`);
 * the standard normals of the process noise are drawn for 64 steps at once
   (:func:`standard_normals`, Box-Muller: 16 us per step against 38 for
   ``rng.standard_normal``) and consumed one step at a time; the draw falls on one step in 64,

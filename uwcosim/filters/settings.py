@@ -158,6 +158,8 @@ class VariationalSettings(FilterSettings):
 
 @settings_for("qivbf")
 class QIVBFSettings(VariationalSettings):
+    """``qivbf`` = ``vbakf`` + the ``extrapolate`` policy built in: its settings plus these."""
+
     extrapolate: Literal["runs", "isolated"] = Field(
         "runs", description="extrapolate every lost component with three earlier receipts "
         "(runs), or only a single loss after three receipts (isolated, seed 001 Assumption 1)")

@@ -1,5 +1,11 @@
 """Variational-Bayes adaptive Kalman filters: VB-AKF (``vbakf``) and QIVBF (``qivbf``).
 
+``qivbf`` is ``vbakf`` fed through the ``extrapolate`` lost-measurement policy
+(:class:`~uwcosim.filters.policies.Extrapolate`, seed 001 eq. 28) before every update:
+:class:`ExtrapolatingVBAKF` is :class:`VariationalBayesAKF` plus that policy, plus the optional
+``inflate_r`` correction below. (``vbakf`` with a scenario's ``policy = "extrapolate"`` gets
+the same extrapolation from outside the filter; the registered name ``qivbf`` is seed 001's.)
+
 VB-AKF: Huang, Zhang, Wu, Li & Chambers, "A novel adaptive Kalman filter with inaccurate process
 and measurement noise covariance matrices", IEEE TAC 63(2), 2018, Algorithm 1. The predicted
 covariance ``P_{k|k-1}`` and ``R_k`` get inverse-Wishart models::
@@ -209,8 +215,9 @@ class VariationalBayesAKF(FilterBase):
 
 
 @register("qivbf")
-class QuadraticInterpolationVBF(VariationalBayesAKF):
-    """QIVBF (seed 001): eq. (28) extrapolation of lost components, then the VB-AKF update.
+class ExtrapolatingVBAKF(VariationalBayesAKF):
+    """``qivbf``, seed 001's QIVBF: the ``vbakf`` update after the ``extrapolate`` policy
+    (eq. 28 extrapolation of lost components), built in.
 
     Uses ``est.t`` (set by the driver before ``update``) as the measurement time. Components
     with fewer than three received values so far are skipped. Settings of ``vbakf`` plus

@@ -105,7 +105,7 @@ def _fmi_headers() -> Path:
 @lru_cache(maxsize=1)
 def default_map_bytes() -> bytes:
     """The DepthSounder's default map: ``synthetic_bathymetry(seed=7)`` as UWCBATH1 bytes."""
-    from uwcosim.models.bathymetry import synthetic_bathymetry
+    from uwcosim.models.terrain import synthetic_bathymetry
 
     with tempfile.TemporaryDirectory(prefix="uwcosim-map-") as tmp:
         path = synthetic_bathymetry(DEFAULT_MAP_SEED).write_coefficients(Path(tmp) / "map")

@@ -159,9 +159,10 @@ def _settable(v) -> bool:
 
 def reference_positions(t: np.ndarray, p0, v0, psi: float, a: float):
     """Positions of eq. (54) at times ``t`` from ``(p0, v0)`` with constant heading and
-    acceleration, from its one definition (:func:`~uwcosim.models.vehicle.vehicle_ode`; one RK4
-    step of any length is exact for it)."""
-    from uwcosim.models.vehicle import rk4_step, vehicle_ode
+    acceleration, from its one definition
+    (:func:`~uwcosim.models.auv_equations.vehicle_ode`; one RK4 step of any length is exact for
+    it)."""
+    from uwcosim.models.auv_equations import rk4_step, vehicle_ode
 
     t = np.asarray(t, dtype=float)
     x0 = np.array([p0[0], p0[1], v0[0], v0[1]], dtype=float)

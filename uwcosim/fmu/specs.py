@@ -24,8 +24,8 @@ from pathlib import Path
 import casadi as ca
 
 from uwcosim.errors import FMUError
-from uwcosim.models.constant_velocity import constant_velocity_ode
-from uwcosim.models.vehicle import dvl_output, vehicle_ode
+from uwcosim.models.auv_equations import dvl_output, vehicle_ode
+from uwcosim.models.cv_equations import constant_velocity_ode
 
 #: base-unit exponents of every unit the FMUs use (FMI UnitDefinitions)
 UNITS: dict[str, dict[str, int]] = {
@@ -38,7 +38,7 @@ UNITS: dict[str, dict[str, int]] = {
 
 #: file name of the default map inside the DepthSounder's resources/ folder
 DEFAULT_MAP_FILE = "default_map.uwcbath"
-#: seed of :func:`uwcosim.models.bathymetry.synthetic_bathymetry` for the default map
+#: seed of :func:`uwcosim.models.terrain.synthetic_bathymetry` for the default map
 DEFAULT_MAP_SEED = 7
 
 

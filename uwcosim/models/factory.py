@@ -4,13 +4,18 @@ By default the filters are matched to the truth: ``Q`` from the ``[noise]`` PSDs
 the sensors' ``sigma``; ``model.q_psd`` overrides the former. The scenario was validated when
 it was loaded (:func:`uwcosim.scenario.validate.reference_problems`: sensors, sigma per output,
 the number of PSDs and the sensors the TAN model takes, a map for a depth sensor).
+
+This is where the implementation is chosen, explicitly: ``kind = "tan"`` gives the closed-form
+numpy :class:`~uwcosim.models.tan.TANModel` (its CasADi form, from the same expressions as the
+FMUs, is ``model.symbolic``), ``kind = "cv"`` the :class:`~uwcosim.models.linear.LinearModel`.
+The filters use the model they are given and import nothing from :mod:`uwcosim.models`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from uwcosim.models.bathymetry import Bathymetry
+from uwcosim.models.terrain import Bathymetry
 
 
 def build_model(loaded, bathymetry: Bathymetry | None):
@@ -26,7 +31,7 @@ def build_model(loaded, bathymetry: Bathymetry | None):
         depth = len(sensors) == 2
         return tan_model(q, sensors[0].sigma, sensors[1].sigma[0] if depth else None,
                          bathymetry if depth else None, names)
-    from uwcosim.models.cv_model import constant_velocity_model
+    from uwcosim.models.linear import constant_velocity_model
 
     r = np.array([sg**2 for s in sensors for sg in s.sigma])
     return constant_velocity_model(q_psd=q, R=np.diag(r), measurement_names=names)

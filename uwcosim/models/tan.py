@@ -2,20 +2,270 @@
 
 State ``[x, y, vx, vy]``, control ``[psi, a]``, process noise on all four states (eq. 54);
 measurements ``[vx, vy]`` from the DVL and, with a map, the terrain depth ``h_d(x, y)``
-(eq. 55). Built from the same CasADi expressions as the FMUs.
+(eq. 55). :func:`tan_model` builds it from the same CasADi expressions as the FMUs
+(:mod:`uwcosim.models.auv_equations`) and returns the closed-form numpy implementation
+:class:`TANModel`, whose ``symbolic`` attribute is the CasADi form (the grid filters analyse its
+expressions). ``tests/test_filters_tan.py`` checks the two against each other.
+
+Why a closed form: CasADi's ``map`` costs about 1 ms per 1000 points and a single CasADi call
+30-60 us, which is the whole budget of a 1000-particle step. For the kinematics of eq. (54)
+with inputs and noise held over a step the exact solution is (RK4 reproduces it, the position
+being quadratic in time)::
+
+    p' = p + dt (Rot v + w_p) + dt^2/2 Rot (a e + w_v),   v' = v + dt (a e + w_v)
+
+with ``Rot`` the rotation by ``psi`` and ``e = [cos psi, sin psi]``: a linear map
+``x' = F x + b + G w`` with ``F = [[I, dt Rot], [0, I]]`` and ``G = [[dt I, dt^2/2 Rot],
+[0, dt I]]``.
+
+:class:`FastTerrain` evaluates the same cubic B-spline as :meth:`Bathymetry.depth` from a table
+of per-cell bicubic polynomial coefficients (16 per cell, 128 bytes: 32 MB for the default
+25 km x 25 km map at 50 m, built once per map in ~0.1 s and shared), one gather and two Horner
+schemes per point. Maps above 512 MB of table fall back to :meth:`Bathymetry.depth`.
 """
 
 from __future__ import annotations
 
+import math
+import weakref
+
 import casadi as ca
 import numpy as np
 
-from uwcosim.models.bathymetry import Bathymetry
-from uwcosim.models.statespace import CasadiModel
-from uwcosim.models.vehicle import STATE_NAMES, vehicle_ode
+from uwcosim import bspline
+from uwcosim.models.auv_equations import STATE_NAMES, vehicle_ode
+from uwcosim.models.casadi_model import CasadiModel
+from uwcosim.models.terrain import PAD, Bathymetry
 
 DVL_NAMES = ("dvl.vx_m", "dvl.vy_m")
 DEPTH_NAME = "sounder.depth_m"
+
+TABLE_MAX_BYTES = 512 * 2**20
+# cubic B-spline basis in the monomial basis: w_a(f) = sum_i _M[a, i] f^i (uwcosim.bspline)
+_M = bspline.MONOMIAL.T
+_TABLES: dict[int, np.ndarray] = {}
+
+
+def _poly_table(bathy: Bathymetry) -> np.ndarray | None:
+    """Per-cell polynomial coefficients ``[4*i + j, cell]`` of ``u^i v^j`` (cached per map).
+
+    Coefficient-major: gathering the cells of a point cloud gives the ``(16, n)`` array the
+    Horner schemes run on without a transposing copy.
+    """
+    key = id(bathy)
+    table = _TABLES.get(key)
+    if table is not None:
+        return table
+    ny, nx = bathy.shape
+    if (ny - 1) * (nx - 1) * 128 > TABLE_MAX_BYTES:
+        return None
+    c = bathy.coefficients[PAD - 1 : PAD + ny + 1, PAD - 1 : PAD + nx + 1]  # nodes -1 .. n
+    # contract the x stencil (a) then the y stencil (b): separable, 16 + 64 whole-grid passes
+    ci = [sum(_M[a, i] * c[:, a : a + nx - 1] for a in range(4)) for i in range(4)]
+    table = np.empty((4, 4, ny - 1, nx - 1))
+    for i in range(4):
+        for j in range(4):
+            table[i, j] = sum(_M[b, j] * ci[i][b : b + ny - 1, :] for b in range(4))
+    table = table.reshape(16, (ny - 1) * (nx - 1))
+    _TABLES[key] = table
+    weakref.finalize(bathy, _TABLES.pop, key, None)
+    return table
+
+
+class FastTerrain:
+    """``h_d(x, y)`` of a :class:`Bathymetry`, vectorized over points, equal to its spline."""
+
+    def __init__(self, bathy: Bathymetry) -> None:
+        self.bathy = bathy
+        ny, nx = bathy.shape
+        self._nx, self._ny = nx, ny
+        self._idx, self._idy = 1.0 / bathy.dx, 1.0 / bathy.dy
+        self._origin = np.array([[bathy.x0], [bathy.y0]])
+        self._inv_spacing = np.array([[self._idx], [self._idy]])
+        self._upper = np.array([[nx - 1.0], [ny - 1.0]])
+        self._last_cell = np.array([[nx - 2], [ny - 2]], dtype=np.intp)
+        self._table = _poly_table(bathy)
+
+    def _cells(self, xy: np.ndarray):
+        """Polynomial coefficients ``C[i, j, n]`` of the cells and the local ``(u, v)``."""
+        uv = xy - self._origin  # (2, n): grid coordinates of the points
+        uv *= self._inv_spacing
+        np.maximum(uv, 0.0, out=uv)
+        np.minimum(uv, self._upper, out=uv)
+        ij = uv.astype(np.intp)
+        np.minimum(ij, self._last_cell, out=ij)
+        uv -= ij  # fractions within the cell
+        cell = ij[1] * (self._nx - 1)
+        cell += ij[0]
+        C = self._table.take(cell, axis=1).reshape(4, 4, -1)
+        return C, uv[0], uv[1]
+
+    def depth_xy(self, xy: np.ndarray) -> np.ndarray:
+        """Depth at points given as a ``(2, n)`` array of ``[x; y]`` rows."""
+        if self._table is None:
+            return self.bathy.depth(xy[0], xy[1])
+        C, u, v = self._cells(xy)
+        uu = np.empty_like(C[0])  # u on every row: same-shape products cost half a broadcast
+        uu[:] = u
+        q = C[3] * uu  # Horner in u: q_j = sum_i c_ij u^i
+        q += C[2]
+        q *= uu
+        q += C[1]
+        q *= uu
+        q += C[0]
+        h = q[3] * v  # Horner in v
+        h += q[2]
+        h *= v
+        h += q[1]
+        h *= v
+        h += q[0]
+        return h
+
+    def depth(self, x, y) -> np.ndarray:
+        """Depth at the points (the value at the nearest edge outside the grid)."""
+        h = self.depth_xy(np.array([np.atleast_1d(x), np.atleast_1d(y)], dtype=float))
+        return h if np.ndim(x) else h[0]
+
+    def point(self, x: float, y: float) -> tuple[float, float, float]:
+        """``(h_d, dh_d/dx, dh_d/dy)`` at one point, in plain floats (no array overhead)."""
+        if self._table is None:
+            h, gx, gy = self.bathy.gradient(np.array([x]), np.array([y]))
+            return float(h[0]), float(gx[0]), float(gy[0])
+        nx, ny = self._nx, self._ny
+        u = (float(x) - self.bathy.x0) * self._idx
+        v = (float(y) - self.bathy.y0) * self._idy
+        flat_u, flat_v = not 0.0 <= u <= nx - 1.0, not 0.0 <= v <= ny - 1.0
+        u = min(max(u, 0.0), nx - 1.0)
+        v = min(max(v, 0.0), ny - 1.0)
+        iu, iv = min(int(u), nx - 2), min(int(v), ny - 2)
+        u -= iu
+        v -= iv
+        c = self._table[:, iv * (nx - 1) + iu].tolist()  # c[4 i + j]: u^i v^j
+        q = [((c[12 + j] * u + c[8 + j]) * u + c[4 + j]) * u + c[j] for j in range(4)]
+        dq = [(3.0 * c[12 + j] * u + 2.0 * c[8 + j]) * u + c[4 + j] for j in range(4)]
+        h = ((q[3] * v + q[2]) * v + q[1]) * v + q[0]
+        hu = 0.0 if flat_u else (((dq[3] * v + dq[2]) * v + dq[1]) * v + dq[0]) * self._idx
+        hv = 0.0 if flat_v else ((3.0 * q[3] * v + 2.0 * q[2]) * v + q[1]) * self._idy
+        return h, hu, hv
+
+    def gradient(self, x, y) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(h_d, dh_d/dx, dh_d/dy)`` at the points.
+
+        Outside the grid the clamped depth is flat across the edge and its derivative there is
+        zero (CasADi's ``bspline`` extrapolates instead; the truth FMU stops at the edge).
+        """
+        if self._table is None:
+            return self.bathy.gradient(x, y)
+        xy = np.array([np.atleast_1d(x), np.atleast_1d(y)], dtype=float)
+        uv = (xy - self._origin) * self._inv_spacing
+        flat = (uv < 0.0) | (uv > self._upper)
+        C, u, v = self._cells(xy)
+        q = ((C[3] * u + C[2]) * u + C[1]) * u + C[0]
+        dq = (3.0 * C[3] * u + 2.0 * C[2]) * u + C[1]  # d q_j / du
+        h = ((q[3] * v + q[2]) * v + q[1]) * v + q[0]
+        hu = ((dq[3] * v + dq[2]) * v + dq[1]) * v + dq[0]
+        hv = (3.0 * q[3] * v + 2.0 * q[2]) * v + q[1]
+        out = (h, np.where(flat[0], 0.0, hu * self._idx), np.where(flat[1], 0.0, hv * self._idy))
+        return out if np.ndim(x) else tuple(a[0] for a in out)
+
+
+class TANModel:
+    """The TAN model in closed form (numpy), built by :func:`tan_model`; same protocol as
+    :class:`~uwcosim.models.casadi_model.CasadiModel`, which it carries as ``symbolic``."""
+
+    linear = False
+    Q_depends_on_x = False  # Q = G diag(psd/dt) G' depends on (u, dt) only
+
+    def __init__(self, base: CasadiModel) -> None:
+        self.symbolic = base  # the same model as CasADi expressions (grid filters use them)
+        self.nx, self.nu, self.nw, self.nz = base.nx, base.nu, base.nw, base.nz
+        self.state_names = base.state_names
+        self.measurement_names = base.measurement_names
+        self.q_psd = base.q_psd
+        self.R = base.R
+        self.terrain = getattr(base, "terrain", None)
+        self._fast_terrain = FastTerrain(self.terrain) if self.terrain is not None else None
+        self._key: tuple | None = None
+        self._sqrt_dt: float | None = None
+
+    def _mats(self, u, dt: float) -> list:
+        """``[F, G, b, Q, Q_factor]`` for ``(u, dt)``; the last two are filled on demand."""
+        psi, a, dt = float(u[0]), float(u[1]), float(dt)
+        key = (psi, a, dt)
+        if key != self._key:
+            c, s = math.cos(psi), math.sin(psi)
+            h2 = 0.5 * dt * dt
+            F = np.array([[1.0, 0.0, dt * c, -dt * s], [0.0, 1.0, dt * s, dt * c],
+                          [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+            G = np.array([[dt, 0.0, h2 * c, -h2 * s], [0.0, dt, h2 * s, h2 * c],
+                          [0.0, 0.0, dt, 0.0], [0.0, 0.0, 0.0, dt]])
+            # b = [dt^2/2 Rot a e, dt a e], Rot e = [cos 2psi, sin 2psi]
+            b = np.array([h2 * a * (c * c - s * s), h2 * a * 2.0 * s * c, dt * a * c, dt * a * s])
+            self._key, self._cache = key, [F, G, b, None, None]
+        return self._cache
+
+    def _Q(self, u, dt: float) -> np.ndarray:
+        m = self._mats(u, dt)
+        if m[3] is None:
+            G = m[1]
+            Q = (G * (self.q_psd / float(dt))) @ G.T  # Q = G diag(psd/dt) G'
+            m[3] = 0.5 * (Q + Q.T)
+        return m[3]
+
+    def f(self, x, u, dt: float) -> np.ndarray:
+        F, _, b, _, _ = self._mats(u, dt)
+        return F @ np.asarray(x, dtype=float) + b
+
+    def f_batch(self, X: np.ndarray, u, dt: float) -> np.ndarray:
+        F, _, b, _, _ = self._mats(u, dt)
+        out = F @ X.T
+        out += b[:, None]
+        return out.T  # column-major result: particle filters read states as columns
+
+    def FG(self, x, u, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        F, G, _, _, _ = self._mats(u, dt)
+        return F.copy(), G.copy()
+
+    def F(self, x, u, dt: float) -> np.ndarray:
+        return self._mats(u, dt)[0].copy()
+
+    def Q(self, x, u, dt: float) -> np.ndarray:
+        return self._Q(u, dt).copy()
+
+    def Q_factor(self, x, u, dt: float) -> np.ndarray:
+        """``L = G diag(psd/dt)^(1/2)`` with ``L L' = Q`` (read-only, cached per ``(u, dt)``):
+        samples ``N(0, Q)`` without a Cholesky factorization."""
+        m = self._mats(u, dt)
+        if m[4] is None:
+            dt = float(dt)
+            if dt != self._sqrt_dt:  # sqrt(psd/dt), for the usual constant step
+                self._sqrt_dt, self._sqrt_psd = dt, np.sqrt(self.q_psd / dt)
+            m[4] = m[1] * self._sqrt_psd
+            m[4].flags.writeable = False
+        return m[4]
+
+    def FQ(self, x, u, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        return self._mats(u, dt)[0].copy(), self._Q(u, dt).copy()
+
+    def h(self, x) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        if self._fast_terrain is None:
+            return x[2:4].copy()
+        return np.array([x[2], x[3], self._fast_terrain.point(x[0], x[1])[0]])
+
+    def H(self, x) -> np.ndarray:
+        H = np.zeros((self.nz, 4))
+        H[0, 2] = H[1, 3] = 1.0
+        if self._fast_terrain is not None:
+            _, H[2, 0], H[2, 1] = self._fast_terrain.point(x[0], x[1])
+        return H
+
+    def h_batch(self, X: np.ndarray) -> np.ndarray:
+        out = np.empty((X.shape[0], self.nz), order="F")
+        out[:, :2] = X[:, 2:4]
+        if self._fast_terrain is not None:
+            out[:, 2] = self._fast_terrain.depth_xy(X.T[:2])
+        return out
 
 
 def tan_model(
@@ -24,7 +274,7 @@ def tan_model(
     depth_sigma: float | None = None,
     terrain: Bathymetry | None = None,
     measurement_names: tuple[str, ...] | None = None,
-) -> CasadiModel:
+) -> TANModel:
     """TAN model; without ``terrain`` only the DVL is measured (dead-reckoning variant)."""
     x = ca.MX.sym("x", 4)
     rows = [x[2], x[3]]
@@ -37,9 +287,9 @@ def tan_model(
         r.append(float(depth_sigma) ** 2)
         names.append(DEPTH_NAME)
     h = ca.Function("h", [x], [ca.vertcat(*rows)], ["x"], ["z"])
-    model = CasadiModel(
+    symbolic = CasadiModel(
         vehicle_ode(), h, q_psd, np.array(r), STATE_NAMES,
         tuple(measurement_names) if measurement_names else tuple(names),
     )
-    model.terrain = terrain
-    return model
+    symbolic.terrain = terrain
+    return TANModel(symbolic)

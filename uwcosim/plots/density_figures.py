@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from uwcosim.estimation import EstimatorBank
+    from uwcosim.estimator_bank import EstimatorBank
     from uwcosim.master.master import Master
 
 import numpy as np

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 
     import numpy as np
 
-    from uwcosim.models.bathymetry import Bathymetry
+    from uwcosim.models.terrain import Bathymetry
 
     #: log columns by name, and lists of names
     Columns = dict[str, np.ndarray]

@@ -43,8 +43,8 @@ def baseline_path(baseline_dir: str | Path, scenario: str | Path) -> Path:
 def run_log(scenario: str | Path, overrides=(), out_dir: str | Path | None = None,
             seed: int | None = None) -> Path:
     """Run ``scenario`` with ``overrides`` (no figures); the path of its log."""
-    from uwcosim.runner import run_scenario
     from uwcosim.scenario import load_scenario
+    from uwcosim.simulation import run_scenario
 
     loaded = load_scenario(scenario, list(overrides))
     out = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="uwc_regr_"))

@@ -15,7 +15,7 @@ from uwcosim.report.run_report import report_run
 def report_campaign(campaign_dir: str | Path, out: str | Path | None = None,
                     html: bool = False) -> Path:
     """Tables, figures and ``report.md`` (and ``report.html``) of a campaign directory."""
-    from uwcosim.campaign.run import collect
+    from uwcosim.campaign.driver import collect
 
     campaign_dir = Path(campaign_dir)
     out = Path(out) if out is not None else campaign_dir

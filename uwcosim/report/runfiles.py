@@ -69,7 +69,7 @@ def load_run(run_dir: str | Path, summary: dict | None = None) -> RunFiles:
     bathy = None
     map_file = run_dir / meta.get("map", "map.bin")
     if map_file.is_file():
-        from uwcosim.models.bathymetry import read_coefficients
+        from uwcosim.models.terrain import read_coefficients
 
         bathy = read_coefficients(map_file)
     dens = run_dir / "densities.npz"

@@ -18,12 +18,13 @@ import numpy as np
 from uwcosim.runlog.parquet import RunLogger
 
 if TYPE_CHECKING:
-    from uwcosim.estimation import EstimatorBank
+    from uwcosim.estimator_bank import EstimatorBank
     from uwcosim.master.master import Master
-    from uwcosim.models.cv_model import LinearModel
-    from uwcosim.models.statespace import CasadiModel
+    from uwcosim.models.casadi_model import CasadiModel
+    from uwcosim.models.linear import LinearModel
+    from uwcosim.models.tan import TANModel
 
-    Model = CasadiModel | LinearModel
+    Model = CasadiModel | LinearModel | TANModel
 
 
 def log_columns(master: Master, bank: EstimatorBank | None,

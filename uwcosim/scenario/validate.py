@@ -171,7 +171,7 @@ def validated_settings(spec: EstimatorSpec) -> dict[str, Any]:
     return model.model_dump(include=set(extra))
 
 
-#: the states of the filters' models (uwcosim.models.tan, uwcosim.models.cv_model)
+#: the states of the filters' models (uwcosim.models.tan, uwcosim.models.linear)
 MODEL_STATES = {"tan": ("x", "y", "vx", "vy"), "cv": ("px", "vx", "py", "vy")}
 
 
@@ -288,7 +288,7 @@ def check_filters(loaded) -> list[Problem]:
 
     from uwcosim.filters.settings import build
     from uwcosim.models.factory import build_model
-    from uwcosim.runner import scenario_map
+    from uwcosim.simulation import scenario_map
 
     spec, where = loaded.spec, str(loaded.path)
     try:

@@ -3,7 +3,7 @@
     u_t = u_xx - x^2 u + (sin t + cos t + 3x) exp(-x^2/2),   u(x, 0) = x exp(-x^2/2)   (eq. 52)
     u(x, t) = (sin t + x) exp(-x^2/2)                                                   (eq. 53)
 
-The projection filter's machinery (:mod:`uwcosim.filters.projection_ops`) discretizes it on
+The projection filter's machinery (:mod:`uwcosim.filters.grid.spectral`) discretizes it on
 ``[-L, L]`` with the ``2K+1`` complex exponentials ``q = -K..K``: Galerkin matrix ``A`` of
 ``d2/dx2 - x^2`` (eqs. 41-42, inner products by FFT quadrature), projected source and initial
 condition. The source is ``(sin t + cos t) a(x) + b(x)``, so the augmented state
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from scipy.linalg import expm
 
-from uwcosim.filters import projection_ops as po
+from uwcosim.filters.grid import spectral as po
 
 T_END = 10.0
 H = 0.1  # output step (s): Figure 2 draws the solution every 0.1 s

@@ -98,7 +98,8 @@ int uwc_map_inside(const uwc_map *m, double x, double y) {
     return x >= ext[0] && x <= ext[1] && y >= ext[2] && y <= ext[3];
 }
 
-/* Cubic B-spline weights at fraction f (same formulas as Bathymetry._basis). */
+/* Cubic B-spline weights at fraction f (same formulas as uwcosim.bspline.basis;
+   tests/test_bathymetry_kernel.py checks this kernel against it). */
 static void basis(double f, double w[4]) {
     const double g = 1.0 - f, f2 = f * f, f3 = f * f * f;
     w[0] = g * g * g / 6.0;
@@ -107,7 +108,7 @@ static void basis(double f, double w[4]) {
     w[3] = f3 / 6.0;
 }
 
-/* Cell index and fraction along one axis (same clamping as Bathymetry._weights). */
+/* Cell index and fraction along one axis (same clamping as uwcosim.bspline.cell). */
 static int cell(double s, double s0, double ds, int n, double *frac) {
     double u = (s - s0) / ds;
     int i;

@@ -1,7 +1,7 @@
 /* uwc_map.h - bicubic B-spline terrain-depth kernel of the DepthSounder FMU.
  *
  * Reads the UWCBATH1 coefficient files written by
- * uwcosim.models.bathymetry.Bathymetry.write_coefficients (little-endian):
+ * uwcosim.models.terrain.Bathymetry.write_coefficients (little-endian):
  *   char magic[8] = "UWCBATH1"; int32 nx, ny; float64 x0, y0, dx, dy;
  *   float64 c[(ny + 6) * (nx + 6)]   (x fastest, 3 mirrored padding nodes on each side)
  * and evaluates the same spline as Bathymetry.depth (numpy reference algorithm).

@@ -11,18 +11,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from uwcosim.filters.projection_model import Partition
+from uwcosim import bspline
+from uwcosim.filters.grid.partition import Partition
 
 _TAPS = np.arange(4)
-# cubic B-spline weights from the powers of the fraction: w_a(f) = sum_i f^i _BSPLINE[i, a]
-_BSPLINE = np.array([[1, 4, 1, 0], [-3, 0, 3, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], float) / 6.0
 
 
 class TerrainGrid:
     """The bathymetry spline ``h_d`` on a tensor grid, separably: ``W_x C W_y'``.
 
-    Same cubic B-spline and edge clamping as :meth:`Bathymetry.depth`, at a cost linear in the
-    grid size instead of 16 gathers per point.
+    Same cubic B-spline and edge clamping as :meth:`Bathymetry.depth` (:mod:`uwcosim.bspline`),
+    at a cost linear in the grid size instead of 16 gathers per point.
     """
 
     def __init__(self, terrain) -> None:
@@ -35,13 +34,11 @@ class TerrainGrid:
 
     @staticmethod
     def _weights(s: np.ndarray, n: int):
-        """Cell index (column) and the 4 cubic B-spline weights (columns) at positions ``s``."""
-        s = np.minimum(np.maximum(s, 0.0), n - 1.0)
-        i = s.astype(np.intp)
-        np.minimum(i, n - 2, out=i)
-        f = s - i
+        """Cell index (column) and the 4 cubic B-spline weights (columns) at positions ``s``
+        (:mod:`uwcosim.bspline`: its clamping, its weights as polynomials)."""
+        i, f = bspline.cell(s, n)
         f2 = f * f
-        return i[:, None], np.stack([np.ones_like(f), f, f2, f2 * f], axis=1) @ _BSPLINE
+        return i[:, None], np.stack([np.ones_like(f), f, f2, f2 * f], axis=1) @ bspline.MONOMIAL
 
     def depth(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
         """``h_d(xs[i], ys[j])``, shape ``(len(xs), len(ys))``."""

@@ -5,7 +5,7 @@ the :class:`~uwcosim.filters.base.StateSpaceModel` protocol (``f``, ``F``, ``Q``
 batch forms) plus ``FQ`` and ``linear = True`` (which the Kalman filter ``kf`` requires).
 
 :func:`constant_velocity_model` is the filter model of the ``ConstantVelocity`` FMU
-(:mod:`uwcosim.models.constant_velocity`): state ``[px, vx, py, vy]`` in the FMU's (and seed 001's)
+(:mod:`uwcosim.models.cv_equations`): state ``[px, vx, py, vy]`` in the FMU's (and seed 001's)
 order, white noise ``w`` held over a step on every state derivative. With the noise held the
 discretization is exact: per axis ``F = [[1, dt], [0, 1]]``, ``G = [[dt, dt^2/2], [0, dt]]`` and
 ``Q = G diag(psd/dt) G'``. Seed 001 Table 2 instead gives a fixed discrete

@@ -4,7 +4,7 @@ Both filters represent the density of a few *gridded* states ``p`` on a grid or 
 and handle the remaining states ``k`` with a Kalman filter, conditionally on the mean of ``p``.
 This module
 
-- splits a :class:`~uwcosim.models.statespace.CasadiModel` state into ``p`` and ``k``
+- splits a :class:`~uwcosim.models.casadi_model.CasadiModel` state into ``p`` and ``k``
   (:class:`Partition`) from the CasADi structure of the dynamics and measurements: the ``k``
   block must have affine dynamics independent of ``p`` and be measured only by affine rows that
   do not involve ``p``; every other measurement row must involve ``p`` only. For the TAN model
@@ -19,7 +19,7 @@ This module
   diffusion of the position, inflated to the *long-run* covariance of the velocity error
   (see :meth:`ConditionalKalman.increment`);
 - the log-likelihood of the ``p`` rows on a tensor grid is in
-  :mod:`uwcosim.filters.projection_likelihood`.
+  :mod:`uwcosim.filters.grid.likelihood`.
 
 The continuous drift is ``model.ode(x, u, 0)`` when the model exposes its ODE as ``ode``;
 otherwise it is the mean rate of the model's own one-step map, ``(f(x, u, dt) - x) / dt``, and
@@ -37,8 +37,8 @@ import numpy as np
 from scipy.linalg import lapack
 
 from uwcosim.errors import FilterDivergence
-from uwcosim.filters import projection_kernels as pk
 from uwcosim.filters.base import select
+from uwcosim.filters.grid import projection_kernels as pk
 from uwcosim.filters.numerics import cholesky, kalman_gain, nis, symmetrize
 
 _gesv = lapack.dgesv
@@ -79,6 +79,12 @@ class FastFunction:
             a[:] = v if getattr(v, "ndim", 1) <= 1 else np.ravel(v)
         self._eval()
         return self._views
+
+
+def symbolic(model):
+    """The CasADi form of a model, whose expressions :class:`Partition` analyses: a model with
+    a closed-form implementation (the TAN model) carries it as ``model.symbolic``."""
+    return getattr(model, "symbolic", model)
 
 
 def _resolve_states(spec, names: tuple[str, ...]) -> list[int]:

@@ -2,7 +2,7 @@
 
 The density of the gridded states ``p`` (all states of a low-dimensional model; the position of
 the TAN model, whose velocities are handled by the conditional Kalman filter of
-:mod:`uwcosim.filters.projection_model`, exactly as in ``pfm_psi``) lives on a regular grid of
+:mod:`uwcosim.filters.grid.partition`, exactly as in ``pfm_psi``) lives on a regular grid of
 ``n_points`` per dimension spanning ``mean -+ span * sigma`` (Bergman 1999). Following the
 Lagrangian grid-based filters of Matousek, Dunik and Straka, the grid is chosen anew at every
 prediction from the predicted mean and covariance (re-centred and re-scaled to the support):
@@ -31,17 +31,18 @@ import scipy.fft as sfft
 from scipy import ndimage, sparse
 
 from uwcosim.errors import FilterDivergence
-from uwcosim.filters import projection_kernels as pk
 from uwcosim.filters.base import Estimator, register
-from uwcosim.filters.numerics import symmetrize
-from uwcosim.filters.projection_likelihood import GridLikelihood
-from uwcosim.filters.projection_model import (
+from uwcosim.filters.grid import projection_kernels as pk
+from uwcosim.filters.grid.likelihood import GridLikelihood
+from uwcosim.filters.grid.partition import (
     ConditionalKalman,
     Partition,
     assemble_estimate,
     block_index,
+    symbolic,
 )
-from uwcosim.filters.projection_ops import axes_moments
+from uwcosim.filters.grid.spectral import axes_moments
+from uwcosim.filters.numerics import symmetrize
 
 _TAPS = np.arange(-1, 3)
 _POWERS = np.arange(4.0)
@@ -239,6 +240,7 @@ class PointMassFilter(Estimator):
         measurements: list[str] | None = None,
         long_run: bool = True,
     ) -> None:
+        model = symbolic(model)
         super().__init__(model, x0, P0)
         self.part = Partition(model, states, measurements)
         self.kalman = ConditionalKalman(model, self.part, self.x, self.P, long_run)

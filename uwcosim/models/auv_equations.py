@@ -17,7 +17,7 @@ position rate while the acceleration is applied along psi.
 
 DVL (eq. 55, first two rows): ``[vx_m, vy_m] = [vx, vy] + e_v``.
 Depth sounder (eq. 55, third row): ``h_m = h_d(x, y) + e_h`` with ``h_d`` the bathymetry
-spline of :mod:`uwcosim.models.bathymetry`.
+spline of :mod:`uwcosim.models.terrain`.
 """
 
 from __future__ import annotations

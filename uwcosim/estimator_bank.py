@@ -24,14 +24,15 @@ import numpy as np
 from uwcosim.errors import FilterDivergence, ScenarioError
 from uwcosim.evaluation.metrics import nees
 from uwcosim.filters import Estimator
+from uwcosim.filters.grid.projection_kernels import interrupted
 from uwcosim.filters.numerics import check_finite
-from uwcosim.filters.projection_kernels import interrupted
 from uwcosim.master.sources import stream
 
 if TYPE_CHECKING:
     from uwcosim.master.master import Master
-    from uwcosim.models.cv_model import LinearModel
-    from uwcosim.models.statespace import CasadiModel
+    from uwcosim.models.casadi_model import CasadiModel
+    from uwcosim.models.linear import LinearModel
+    from uwcosim.models.tan import TANModel
 
 
 @dataclass
@@ -51,7 +52,7 @@ class Track:
 class EstimatorBank:
     """All estimators of a run, fed from the master's bus."""
 
-    def __init__(self, master: Master, model: CasadiModel | LinearModel, where: str,
+    def __init__(self, master: Master, model: CasadiModel | LinearModel | TANModel, where: str,
                  map_extent: tuple[float, float, float, float] | None = None) -> None:
         from uwcosim.divergence import DivergenceCheck, default_bound
         from uwcosim.evaluation.metrics import position_velocity_indices

@@ -7,7 +7,7 @@ import pytest
 from scipy.linalg import expm
 from scipy.stats import multivariate_normal
 
-from uwcosim.filters import projection_ops as po
+from uwcosim.filters.grid import spectral as po
 from uwcosim.verify.example1 import run_example1, solve
 
 MEAN = np.array([0.5, 1.0])

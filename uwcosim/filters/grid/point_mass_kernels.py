@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from uwcosim.filters.projection_kernels import (
+from uwcosim.filters.grid.projection_kernels import (
     TWO_PI,
     _jit,
     _jit_fast,

@@ -29,14 +29,14 @@ from uwcosim import __version__
 from uwcosim.errors import RunInterrupted, ScenarioError, UwcosimError
 from uwcosim.master.master import Master
 from uwcosim.master.varmap import noise_free_notes
-from uwcosim.models.bathymetry import Bathymetry, load_map, synthetic_bathymetry
+from uwcosim.models.terrain import Bathymetry, load_map, synthetic_bathymetry
 from uwcosim.runguard import run_guard, signal_name
 from uwcosim.runlog import RunLogger
 from uwcosim.runlog.recorder import LogRecorder, log_columns
 from uwcosim.scenario.load import LoadedScenario
 
 if TYPE_CHECKING:
-    from uwcosim.estimation import EstimatorBank
+    from uwcosim.estimator_bank import EstimatorBank
 
 PACKAGES = ("uwcosim", "fmpy", "numpy", "scipy", "casadi", "pyarrow")
 
@@ -173,7 +173,7 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
     of :mod:`uwcosim.runguard`, which finalizes the log and summary and ends the process.
     A failure is raised (:class:`~uwcosim.errors.UwcosimError`) after the files are written.
     """
-    from uwcosim.estimation import EstimatorBank
+    from uwcosim.estimator_bank import EstimatorBank
     from uwcosim.evaluation.summary import SIMULATION_FILE, write_json
     from uwcosim.evaluation.summary import evaluate as evaluate_run
     from uwcosim.models.factory import build_model

@@ -520,7 +520,7 @@ def box(mean, cov, k_sigma, min_halfwidth):
 
 
 # the kernels of the other two modules, reachable from here (imported last: they use the above)
-from uwcosim.filters.point_mass_kernels import (  # noqa: E402
+from uwcosim.filters.grid.point_mass_kernels import (  # noqa: E402
     grid_product_moments,
     pm_finish,
     pm_gauss_prefilter,
@@ -528,7 +528,7 @@ from uwcosim.filters.point_mass_kernels import (  # noqa: E402
     spline_shift_2d,
     terrain_exponent,
 )
-from uwcosim.filters.projection_kalman import (  # noqa: E402
+from uwcosim.filters.grid.projection_kalman import (  # noqa: E402
     assemble,
     available_bits,
     kalman_increment,

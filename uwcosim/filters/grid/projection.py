@@ -2,9 +2,9 @@
 
 The density of the gridded states ``p`` (all states of a low-dimensional model; the position
 ``(x, y)`` of the TAN model) is the truncated complex-exponential series of
-:mod:`uwcosim.filters.projection_ops` on the box ``E +- k_sigma * sigma`` (eq. 33). The other
+:mod:`uwcosim.filters.grid.spectral` on the box ``E +- k_sigma * sigma`` (eq. 33). The other
 states ``k`` (the DVL-measured velocities of the TAN model) are handled by a conditional Kalman
-filter (:mod:`uwcosim.filters.projection_model`). One step:
+filter (:mod:`uwcosim.filters.grid.partition`). One step:
 
 1. *Re-centring* (eq. 33): the box is centred on the predicted mean with half-width ``k_sigma``
    predicted standard deviations; the coefficients are re-projected exactly from the old box
@@ -19,7 +19,7 @@ filter (:mod:`uwcosim.filters.projection_model`). One step:
    When neither ``f_p`` nor ``B`` depends on ``x_p`` (the TAN position block: its drift is the
    rotated velocity), ``A`` is diagonal: a phase shift (applied by translating the box, which is
    exact and cannot wrap around) and the decay ``exp(-w' D w / 2)``. ``D`` includes the velocity
-   uncertainty (:class:`~uwcosim.filters.projection_model.ConditionalKalman`).
+   uncertainty (:class:`~uwcosim.filters.grid.partition.ConditionalKalman`).
 3. *Bayes update* (eqs. 45-48): ``m = F m- / (E' m-)``, computed as the FFT quadrature of the
    product of likelihood and prior on the grid (``F m-`` is exactly that projection, so ``F`` is
    never formed). When the posterior box (eq. 33 with the posterior moments) is narrower than
@@ -73,17 +73,18 @@ from scipy.linalg import expm
 from scipy.sparse.linalg import expm_multiply
 
 from uwcosim.errors import FilterDivergence
-from uwcosim.filters import projection_kernels as pk
-from uwcosim.filters import projection_ops as po
 from uwcosim.filters.base import Estimator, register
-from uwcosim.filters.numerics import cholesky, symmetrize
-from uwcosim.filters.projection_likelihood import GridLikelihood
-from uwcosim.filters.projection_model import (
+from uwcosim.filters.grid import projection_kernels as pk
+from uwcosim.filters.grid import spectral as po
+from uwcosim.filters.grid.likelihood import GridLikelihood
+from uwcosim.filters.grid.partition import (
     ConditionalKalman,
     Partition,
     assemble_estimate,
     block_index,
+    symbolic,
 )
+from uwcosim.filters.numerics import cholesky, symmetrize
 
 POSITIVITY = ("auto", "none", "threshold", "clip", "product", "jackson")
 DENSE_EXPM_MAX = 1200  # basis size up to which exp(A dt) is formed densely
@@ -127,6 +128,7 @@ class ProjectionFilter(Estimator):
         moment_match: bool = True,
         gate: float = 5.0,
     ) -> None:
+        model = symbolic(model)
         super().__init__(model, x0, P0)
         if int(K) != K or K < 1:
             raise ValueError(f"K must be a positive integer, got {K}")

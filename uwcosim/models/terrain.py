@@ -3,8 +3,8 @@
 A map is a regular grid of depths (m, positive down) at ``x = x0 + i*dx`` (east) and
 ``y = y0 + j*dy`` (north), stored as ``depth[j, i]`` (rows are y). ``h_d`` is the C2 cubic
 B-spline that interpolates the grid (coefficients from :func:`scipy.ndimage.spline_filter` with
-mirror boundaries, padded by three mirrored coefficients on each side). The same spline is
-evaluated by
+mirror boundaries, padded by three mirrored coefficients on each side), defined once in
+:mod:`uwcosim.bspline` (which lists its other forms and their tests). It is evaluated by
 
 - :meth:`Bathymetry.depth` / :meth:`Bathymetry.gradient` (numpy, vectorized over points),
 - :meth:`Bathymetry.casadi_function` (``casadi.bspline``: exact Jacobians for the EKF),
@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
+from uwcosim import bspline
 from uwcosim.errors import MapError
 
 PAD = 3
@@ -70,25 +71,14 @@ class Bathymetry:
 
     def _weights(self, x: np.ndarray, y: np.ndarray):
         ny, nx = self.shape
-        u = np.clip((np.asarray(x, dtype=float) - self.x0) / self.dx, 0.0, nx - 1.0)
-        v = np.clip((np.asarray(y, dtype=float) - self.y0) / self.dy, 0.0, ny - 1.0)
-        iu = np.minimum(np.floor(u).astype(np.intp), nx - 2)
-        iv = np.minimum(np.floor(v).astype(np.intp), ny - 2)
-        return iu, u - iu, iv, v - iv
-
-    @staticmethod
-    def _basis(f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Cubic B-spline weights and their derivatives at fraction ``f``: shape (4, ...)."""
-        g = 1.0 - f
-        f2, f3 = f * f, f * f * f
-        w = np.stack([g**3, 3 * f3 - 6 * f2 + 4, -3 * f3 + 3 * f2 + 3 * f + 1, f3]) / 6.0
-        dw = np.stack([-(g**2), 3 * f2 - 4 * f, -3 * f2 + 2 * f + 1, f2]) / 2.0
-        return w, dw
+        iu, fu = bspline.cell((np.asarray(x, dtype=float) - self.x0) / self.dx, nx)
+        iv, fv = bspline.cell((np.asarray(y, dtype=float) - self.y0) / self.dy, ny)
+        return iu, fu, iv, fv
 
     def _eval(self, x, y, grad: bool):
         iu, fu, iv, fv = self._weights(x, y)
-        wu, dwu = self._basis(fu)
-        wv, dwv = self._basis(fv)
+        wu, dwu = bspline.basis(fu)
+        wv, dwv = bspline.basis(fv)
         c = self.coefficients
         val = np.zeros(np.shape(fu))
         gx = np.zeros_like(val)

@@ -1,12 +1,6 @@
 """Kalman-family filters on a :class:`~uwcosim.filters.base.StateSpaceModel`.
 
-:class:`FilterBase` holds what every filter of the package shares: the ``measurements`` setting
-(the subset of measurement names a filter uses), per-step diagnostics (reset when a step begins,
-i.e. at ``predict``, or at ``update`` when no ``predict`` came before it; ``pd_repairs`` always,
-``nis``/``nis_dof`` after an update with data, plus each filter's own), finiteness checks that
-raise :class:`~uwcosim.errors.FilterDivergence`. A filter uses the model it is given: which
-implementation that is (CasADi, or the closed-form TAN model) is chosen where the model is built
-(:mod:`uwcosim.models.factory`).
+They share :class:`~uwcosim.filters.base.FilterBase` with the other filters of the package.
 
 :class:`KalmanFilter` (``kf``) needs a linear model (``model.linear``);
 :class:`ExtendedKalmanFilter` (``ekf``) linearizes with the model's exact Jacobians (on a linear
@@ -18,62 +12,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from uwcosim.filters.base import Estimator, register, select
+from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.numerics import (
-    check_finite,
     joseph_update,
     kalman_gain,
     linearize,
     nis,
     symmetrize,
 )
-
-
-def measurement_use(model, measurements: list[str] | None) -> np.ndarray:
-    """Boolean mask of the measurement components a filter uses (default: all)."""
-    names = model.measurement_names
-    if measurements is None:
-        return np.ones(model.nz, dtype=bool)
-    unknown = [m for m in measurements if m not in names]
-    if unknown:
-        raise ValueError(f"unknown measurements {unknown} (valid: {', '.join(names)})")
-    return np.array([n in measurements for n in names])
-
-
-class FilterBase(Estimator):
-    """Shared plumbing: measurement subset, step diagnostics, divergence checks."""
-
-    def __init__(self, model, x0, P0, measurements: list[str] | None = None) -> None:
-        super().__init__(model, x0, P0)
-        self._use = measurement_use(model, measurements)
-        self._predicted = False
-        self._R_blocks: dict[bytes, np.ndarray] = {}
-        check_finite("initial state or covariance", self.x, self.P)
-
-    def _begin_predict(self) -> None:
-        self.diagnostics = {"pd_repairs": 0.0}
-        self._predicted = True
-
-    def _begin_update(self, z, mask) -> np.ndarray | None:
-        """Start the update half of a step; the indices of the usable components (or None)."""
-        if not self._predicted:
-            self.diagnostics = {"pd_repairs": 0.0}
-        self._predicted = False
-        if z is None:
-            return None
-        mask = self._use if mask is None else (np.asarray(mask, dtype=bool) & self._use)
-        return select(z, mask, self.model.nz)
-
-    def _R(self, idx: np.ndarray) -> np.ndarray:
-        """``R[idx, idx]`` (cached per set of components)."""
-        key = idx.tobytes()
-        R = self._R_blocks.get(key)
-        if R is None:
-            R = self._R_blocks[key] = self.model.R[np.ix_(idx, idx)]
-        return R
-
-    def _check(self, what: str) -> None:
-        check_finite(f"{self.kind} {what}", self.x, self.P)
 
 
 @register("ekf")

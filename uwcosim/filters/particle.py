@@ -46,8 +46,7 @@ import numpy as np
 from scipy.linalg import solve_triangular
 
 from uwcosim.errors import FilterDivergence, ScenarioError
-from uwcosim.filters.base import register
-from uwcosim.filters.kalman import FilterBase
+from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.numerics import cholesky, psd_factor, repair_pd
 from uwcosim.registry import Registry
 

@@ -48,8 +48,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from uwcosim.errors import FilterDivergence, ScenarioError
-from uwcosim.filters.base import register
-from uwcosim.filters.kalman import FilterBase
+from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.numerics import (
     cholesky,
     linearize,

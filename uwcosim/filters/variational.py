@@ -57,8 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uwcosim.filters.base import register
-from uwcosim.filters.kalman import FilterBase
+from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.numerics import kalman_gain, linearize, nis, symmetrize
 from uwcosim.filters.policies import Extrapolate
 

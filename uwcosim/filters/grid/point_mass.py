@@ -33,14 +33,9 @@ from scipy import ndimage, sparse
 from uwcosim.errors import FilterDivergence
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.grid import projection_kernels as pk
+from uwcosim.filters.grid.conditional import ConditionalKalman, assemble_estimate, block_index
 from uwcosim.filters.grid.likelihood import GridLikelihood
-from uwcosim.filters.grid.partition import (
-    ConditionalKalman,
-    Partition,
-    assemble_estimate,
-    block_index,
-    symbolic,
-)
+from uwcosim.filters.grid.partition import Partition, symbolic
 from uwcosim.filters.grid.spectral import axes_moments
 from uwcosim.filters.numerics import symmetrize
 

@@ -142,7 +142,7 @@ def residual(w: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return idx
 
 
-def _quad_form(L: np.ndarray, y: np.ndarray) -> float:
+def quad_form(L: np.ndarray, y: np.ndarray) -> float:
     """``y' (L L')^-1 y`` for a lower triangular ``L`` (forward substitution; the few
     measurement components of a step make plain floats cheaper than a LAPACK call)."""
     rows, b = L.tolist(), y.tolist()
@@ -157,8 +157,86 @@ def _quad_form(L: np.ndarray, y: np.ndarray) -> float:
     return acc
 
 
+class ParticleCloud(FilterBase):
+    """Weighted particles, state-major (row ``j`` holds state ``j`` of every particle), with
+    normalized log weights and the estimate computed when read (once per step): what the
+    particle filters (``pf``, ``rpf``, ``rbpf``) share. Subclasses call :meth:`_init_cloud`,
+    draw ``self.particles`` and add to :meth:`_conditional_cov` what the particles do not
+    carry (the RBPF's Kalman covariance)."""
+
+    def _init_cloud(self, n_particles: int, resampling: str, ess_threshold: float,
+                    seed: int | None, rng: np.random.Generator | None) -> None:
+        if int(n_particles) < 2:
+            raise ValueError(f"n_particles must be at least 2, got {n_particles}")
+        if not 0.0 <= float(ess_threshold) <= 1.0:
+            raise ValueError(f"ess_threshold must be in [0, 1], got {ess_threshold}")
+        try:
+            self.resample = RESAMPLERS.get(resampling)
+        except ScenarioError as exc:  # from_settings prefixes the scenario location
+            raise ValueError(str(exc)) from None
+        self.n = n = int(n_particles)
+        self.ess_threshold = float(ess_threshold)
+        if seed is not None:
+            rng = np.random.default_rng(seed)
+        self.rng = rng if rng is not None else np.random.default_rng()
+        self.logw = np.full(n, -math.log(n))  # normalized log weights, updated in place
+        self._w = np.full(n, 1.0 / n)
+        self._normals: np.ndarray | None = None  # block of standard normals, (steps, nw, N)
+        self._next_normals = 0
+        self._x_stale = self._P_stale = True
+
+    # estimate -----------------------------------------------------------------------------
+    @property
+    def x(self) -> np.ndarray:
+        if getattr(self, "_x_stale", False):
+            self._x = self.particles @ self._w  # x = sum w_i X_i
+            self._x_stale = False
+        return self._x
+
+    @x.setter
+    def x(self, value) -> None:
+        self._x = value
+
+    @property
+    def P(self) -> np.ndarray:
+        if getattr(self, "_P_stale", False):
+            D = np.subtract(self.particles, self.x[:, None], out=self._D)
+            P = (D * self._w) @ D.T  # P = sum w_i (X_i - x)(X_i - x)'
+            P += P.T
+            P *= 0.5
+            self._P = self._conditional_cov(P)
+            self._P_stale = False
+        return self._P
+
+    @P.setter
+    def P(self, value) -> None:
+        self._P = value
+
+    def _conditional_cov(self, P: np.ndarray) -> np.ndarray:
+        """``P`` plus the covariance the particles do not carry (none here)."""
+        return P
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Normalized particle weights (a copy)."""
+        return self._w.copy()
+
+    def _moved(self) -> None:
+        self._x_stale = self._P_stale = True
+
+    def _standard_normals(self, nw: int) -> np.ndarray:
+        """``(nw, N)`` standard normals for one step, from a block drawn for several."""
+        block, k = self._normals, self._next_normals
+        if block is None or k == block.shape[0] or block.shape[1] != nw:
+            steps = max(1, min(NOISE_BLOCK_STEPS, NOISE_BLOCK_MAX // (nw * self.n)))
+            block = self._normals = standard_normals(self.rng, (steps, nw, self.n))
+            k = 0
+        self._next_normals = k + 1
+        return block[k]
+
+
 @register("pf")
-class ParticleFilter(FilterBase):
+class ParticleFilter(ParticleCloud):
     """Bootstrap particle filter.
 
     Settings: ``n_particles`` (1000), ``resampling`` (``systematic``, ``stratified``,
@@ -184,71 +262,19 @@ class ParticleFilter(FilterBase):
         measurements: list[str] | None = None,
     ) -> None:
         super().__init__(model, x0, P0, measurements)
-        if int(n_particles) < 2:
-            raise ValueError(f"n_particles must be at least 2, got {n_particles}")
-        if not 0.0 <= float(ess_threshold) <= 1.0:
-            raise ValueError(f"ess_threshold must be in [0, 1], got {ess_threshold}")
         if float(roughening) < 0.0:
             raise ValueError(f"roughening must be >= 0, got {roughening}")
-        try:
-            self.resample = RESAMPLERS.get(resampling)
-        except ScenarioError as exc:  # from_settings prefixes the scenario location
-            raise ValueError(str(exc)) from None
-        self.n = n = int(n_particles)
-        self.ess_threshold = float(ess_threshold)
+        L = psd_factor(self.P)  # P0 may be singular (a state known exactly); read before
+        x = self.x  # the cloud makes x and P lazy
+        self._init_cloud(n_particles, resampling, ess_threshold, seed, rng)
         self.roughening = float(roughening)
-        if seed is not None:
-            rng = np.random.default_rng(seed)
-        self.rng = rng if rng is not None else np.random.default_rng()
-        L = psd_factor(self.P)  # P0 may be singular (a state known exactly)
         # particles, state-major: row j holds state j of every particle
-        self.particles = self.x[:, None] + L @ self.rng.standard_normal((model.nx, n))
-        # normalized log weights and weights, updated in place
-        self.logw = np.full(n, -math.log(n))
-        self._w = np.full(n, 1.0 / n)
+        self.particles = x[:, None] + L @ self.rng.standard_normal((model.nx, self.n))
         self._D = np.empty_like(self.particles)  # centred particles, for P
-        self._x_stale = self._P_stale = True
         self._xdep = getattr(self.model, "Q_depends_on_x", True)
         self._Q_factor = getattr(self.model, "Q_factor", None)
         self._noise_key: tuple | None = None
-        self._normals: np.ndarray | None = None  # block of standard normals, (steps, nw, N)
-        self._next_normals = 0
         self._lik_cache: dict[bytes, tuple] = {}
-
-    # estimate -----------------------------------------------------------------------------
-    @property
-    def x(self) -> np.ndarray:
-        if getattr(self, "_x_stale", False):
-            self._x = self.particles @ self._w  # x = sum w_i X_i
-            self._x_stale = False
-        return self._x
-
-    @x.setter
-    def x(self, value) -> None:
-        self._x = value
-
-    @property
-    def P(self) -> np.ndarray:
-        if getattr(self, "_P_stale", False):
-            D = np.subtract(self.particles, self.x[:, None], out=self._D)
-            P = (D * self._w) @ D.T  # P = sum w_i (X_i - x)(X_i - x)'
-            P += P.T
-            P *= 0.5
-            self._P = P
-            self._P_stale = False
-        return self._P
-
-    @P.setter
-    def P(self, value) -> None:
-        self._P = value
-
-    @property
-    def weights(self) -> np.ndarray:
-        """Normalized particle weights (a copy)."""
-        return self._w.copy()
-
-    def _moved(self) -> None:
-        self._x_stale = self._P_stale = True
 
     # filter -------------------------------------------------------------------------------
     def _noise_factor(self, u, dt: float) -> np.ndarray:
@@ -260,16 +286,6 @@ class ParticleFilter(FilterBase):
                 self._L = psd_factor(self.model.Q(self.x, u, dt))
             self._noise_key = key
         return self._L
-
-    def _standard_normals(self, nw: int) -> np.ndarray:
-        """``(nw, N)`` standard normals for one step, from a block drawn for several."""
-        block, k = self._normals, self._next_normals
-        if block is None or k == block.shape[0] or block.shape[1] != nw:
-            steps = max(1, min(NOISE_BLOCK_STEPS, NOISE_BLOCK_MAX // (nw * self.n)))
-            block = self._normals = standard_normals(self.rng, (steps, nw, self.n))
-            k = 0
-        self._next_normals = k + 1
-        return block[k]
 
     def predict(self, u, dt: float) -> None:
         self._begin_predict()
@@ -321,7 +337,7 @@ class ParticleFilter(FilterBase):
         LS = cholesky(S)
         if LS is None:
             S, LS = repair_pd(S, self.diagnostics)
-        self.diagnostics["nis"] = _quad_form(LS, y)
+        self.diagnostics["nis"] = quad_form(LS, y)
         self.diagnostics["nis_dof"] = float(idx.size)
         # log-likelihood -1/2 e' R^-1 e of every particle
         if diagonal:

@@ -47,8 +47,8 @@ import math
 import numpy as np
 from scipy.linalg import lapack
 
-from uwcosim.errors import FilterDivergence, ScenarioError
-from uwcosim.filters.base import FilterBase, register
+from uwcosim.errors import FilterDivergence
+from uwcosim.filters.base import register
 from uwcosim.filters.numerics import (
     cholesky,
     linearize,
@@ -56,27 +56,11 @@ from uwcosim.filters.numerics import (
     repair_pd,
     symmetrize,
 )
-from uwcosim.filters.particle import RESAMPLERS, standard_normals
+from uwcosim.filters.particle import ParticleCloud, quad_form
 
-NOISE_BLOCK_STEPS = 64
 _trtri = lapack.dtrtri
 _potrf = lapack.dpotrf
 _TINY = 1e-250
-
-
-def _quad_form(L: np.ndarray, y: np.ndarray) -> float:
-    """``y' (L L')^-1 y`` for a small lower triangular ``L`` (forward substitution in floats:
-    cheaper than a LAPACK call through numpy for the few rows of a measurement)."""
-    rows, b = L.tolist(), y.tolist()
-    acc = 0.0
-    for i, row in enumerate(rows):
-        v = b[i]
-        for j in range(i):
-            v -= row[j] * b[j]
-        v /= row[i]
-        b[i] = v
-        acc += v * v
-    return acc
 
 
 def block_slice(idx: list[int]):
@@ -129,7 +113,7 @@ def _split(model, x0, P0, use, linear_states, names) -> tuple[list[int], list[in
 
 
 @register("rbpf")
-class RaoBlackwellizedPF(FilterBase):
+class RaoBlackwellizedPF(ParticleCloud):
     """Marginalized particle filter: particles on the nonlinear states, one Kalman filter per
     particle (common covariance) on the linear-Gaussian ones.
 
@@ -152,17 +136,10 @@ class RaoBlackwellizedPF(FilterBase):
         measurements: list[str] | None = None,
     ) -> None:
         super().__init__(model, x0, P0, measurements)
-        if int(n_particles) < 2:
-            raise ValueError(f"n_particles must be at least 2, got {n_particles}")
-        if not 0.0 <= float(ess_threshold) <= 1.0:
-            raise ValueError(f"ess_threshold must be in [0, 1], got {ess_threshold}")
-        try:
-            self.resample = RESAMPLERS.get(resampling)
-        except ScenarioError as exc:
-            raise ValueError(str(exc)) from None
+        self._init_cloud(n_particles, resampling, ess_threshold, seed, rng)
+        self._x_stale = self._P_stale = False  # x0 and P0 until the particles are drawn
         m = self.model
-        self.n = n = int(n_particles)
-        self.ess_threshold = float(ess_threshold)
+        n = self.n
         names = tuple(m.state_names)
         self.ip, self.ik = _split(m, self.x, self.P, self._use, linear_states, names)
         ip, ik = self.ip, self.ik
@@ -182,9 +159,6 @@ class RaoBlackwellizedPF(FilterBase):
         self._Hk = H0[np.ix_(self.rows_k, ik)] if self.rows_k else np.zeros((0, len(ik)))
         self._kalman_row = np.zeros(m.nz, dtype=bool)
         self._kalman_row[self.rows_k] = True
-        if seed is not None:
-            rng = np.random.default_rng(seed)
-        self.rng = rng if rng is not None else np.random.default_rng()
         # particles, state-major: particle states drawn from N(x0, P0)_p, and the linear
         # states' conditional means given them (exact conditioning of the Gaussian prior)
         P = self.P
@@ -199,10 +173,6 @@ class RaoBlackwellizedPF(FilterBase):
             self.Pk = symmetrize(P[np.ix_(ik, ik)] - G @ Pkp.T)
         else:
             self.Pk = np.zeros((0, 0))
-        self.logw = np.full(n, -math.log(n))
-        self._w = np.full(n, 1.0 / n)
-        self._normals: np.ndarray | None = None
-        self._next_normals = 0
         self._x_stale = self._P_stale = True
         self._sp, self._sk = block_slice(ip), block_slice(ik)
         self._kk = block_pair(ik, ik)
@@ -215,49 +185,11 @@ class RaoBlackwellizedPF(FilterBase):
         self._D = np.empty_like(self.particles)  # centred particles, for P
         self._half = np.full(m.nz, 0.5)
 
-    # estimate -----------------------------------------------------------------------------
-    @property
-    def x(self) -> np.ndarray:
-        if getattr(self, "_x_stale", False):
-            self._x = self.particles @ self._w
-            self._x_stale = False
-        return self._x
-
-    @x.setter
-    def x(self, value) -> None:
-        self._x = value
-
-    @property
-    def P(self) -> np.ndarray:
-        if getattr(self, "_P_stale", False):
-            D = np.subtract(self.particles, self.x[:, None], out=self._D)
-            P = (D * self._w) @ D.T
-            P = symmetrize(P)
-            if self.ik:
-                P[self._kk] += self.Pk
-            self._P = P
-            self._P_stale = False
-        return self._P
-
-    @P.setter
-    def P(self, value) -> None:
-        self._P = value
-
-    @property
-    def weights(self) -> np.ndarray:
-        """Normalized particle weights (a copy)."""
-        return self._w.copy()
-
-    def _moved(self) -> None:
-        self._x_stale = self._P_stale = True
-
-    def _standard_normals(self, d: int) -> np.ndarray:
-        block, i = self._normals, self._next_normals
-        if block is None or i == block.shape[0]:
-            block = self._normals = standard_normals(self.rng, (NOISE_BLOCK_STEPS, d, self.n))
-            i = 0
-        self._next_normals = i + 1
-        return block[i]
+    def _conditional_cov(self, P: np.ndarray) -> np.ndarray:
+        """The particles' covariance plus the common Kalman covariance of the linear states."""
+        if self.ik:
+            P[self._kk] += self.Pk
+        return P
 
     # filter -------------------------------------------------------------------------------
     def predict(self, u, dt: float) -> None:
@@ -356,7 +288,7 @@ class RaoBlackwellizedPF(FilterBase):
         LS = cholesky(S)
         if LS is None:
             S, LS = repair_pd(S, self.diagnostics)
-        self.diagnostics["nis"] = _quad_form(LS, y)
+        self.diagnostics["nis"] = quad_form(LS, y)
         self.diagnostics["nis_dof"] = float(m)
         Li, info = _trtri(L11, lower=1)
         if info != 0:  # pragma: no cover - L11 is a Cholesky factor

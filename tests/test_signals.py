@@ -39,10 +39,22 @@ def _default_sigint() -> None:  # a shell may start the tests with SIGINT ignore
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+_CHILD_ENV: dict[str, str] = {}
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _child_tmpdir(tmp_path_factory):
+    """The children's temporary folders (unzipped FMUs, worker files) go to a pytest folder: a
+    child killed with SIGKILL cannot remove its own, and /tmp would keep them."""
+    _CHILD_ENV.update(os.environ, TMPDIR=str(tmp_path_factory.mktemp("child-tmp")))
+    yield
+    _CHILD_ENV.clear()
+
+
 def _spawn(*args: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "uwcosim", *args], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=_default_sigint)
+                            preexec_fn=_default_sigint, env=_CHILD_ENV or None)
 
 
 def _children(pid: int) -> dict[int, int]:

@@ -28,13 +28,18 @@ from uwcosim.filters.projection_kernels import (
 
 
 @_jit
-def _transfer(K, lo, length, lo2, length2):
+def _transfer(K, lo, length, lo2, length2, upper):
     """:func:`projection_ops.transfer_matrix` (one dimension), with the phases and the sine of
-    the difference ``sin(x_i - y_j)`` separated into per-index factors."""
+    the difference ``sin(x_i - y_j)`` separated into per-index factors.
+
+    Only the rows ``q >= 0`` when ``upper`` (``T[K:]``, what the Hermitian half of a
+    re-projection needs). The factors of ``-q`` are the conjugates (negated sines) of those of
+    ``q``, and ``T[-q, -q'] = conj(T[q, q'])``: both are computed once, by exact sign flips
+    (half the trigonometric calls and half the entries)."""
     n = 2 * K + 1
     a = max(lo, lo2)
     w = min(lo + length, lo2 + length2) - a
-    T = np.zeros((n, n), np.complex128)
+    T = np.zeros((K + 1 if upper else n, n), np.complex128)
     if w <= 0.0:
         return T
     c = w / math.sqrt(length * length2)
@@ -46,18 +51,28 @@ def _transfer(K, lo, length, lo2, length2):
     ca = np.empty(n)
     sb = np.empty(n)
     cb = np.empty(n)
-    for i in range(n):
+    for i in range(K, n):  # q = i - K >= 0; mirrored to -q (exact: sin(-x) = -sin(x))
+        r = n - 1 - i
         om2[i] = TWO_PI * (i - K) / length2
         om[i] = TWO_PI * (i - K) / length
+        om2[r] = -om2[i]
+        om[r] = -om[i]
         ph = -om2[i] * (a - lo2 + 0.5 * w)
-        left[i] = complex(math.cos(ph), math.sin(ph))
+        cp, sp = math.cos(ph), math.sin(ph)
+        left[i] = complex(cp, sp)
+        left[r] = complex(cp, -sp)
         ph = om[i] * (a - lo + 0.5 * w)
-        right[i] = complex(math.cos(ph), math.sin(ph))
+        cp, sp = math.cos(ph), math.sin(ph)
+        right[i] = complex(cp, sp)
+        right[r] = complex(cp, -sp)
         x = -0.5 * w * om2[i]
         y = -0.5 * w * om[i]
         sa[i], ca[i] = math.sin(x), math.cos(x)
         sb[i], cb[i] = math.sin(y), math.cos(y)
-    for i in range(n):
+        sa[r], ca[r] = -sa[i], ca[i]
+        sb[r], cb[r] = -sb[i], cb[i]
+    r0 = 0 if upper else K  # row of q = 0 in T
+    for i in range(K, n):
         for j in range(n):
             delta = (om2[i] - om[j]) * (-0.5 * w)
             if delta == 0.0:
@@ -66,7 +81,11 @@ def _transfer(K, lo, length, lo2, length2):
                 s = math.sin(delta) / delta
             else:  # sin(x - y) = sin x cos y - cos x sin y, |error| <= 4 eps / |delta|
                 s = (sa[i] * cb[j] - ca[i] * sb[j]) / delta
-            T[i, j] = left[i] * right[j] * (s * c)
+            T[r0 + i - K, j] = left[i] * right[j] * (s * c)
+    if not upper:
+        for i in range(K):
+            for j in range(n):
+                T[i, j] = T[n - 1 - i, n - 1 - j].conjugate()
     return T
 
 
@@ -77,11 +96,11 @@ def shift_decay(m, lo, length, lo2, length2, D, decay):
     when ``decay`` (:func:`projection_ops.diffusion_decay`)."""
     K = (m.shape[0] - 1) // 2
     n = 2 * K + 1
-    T0 = _transfer(K, lo[0], length[0], lo2[0], length2[0])
-    T1 = _transfer(K, lo[1], length[1], lo2[1], length2[1])
+    T0 = _transfer(K, lo[0], length[0], lo2[0], length2[0], True)  # rows q_0 >= 0
+    T1 = _transfer(K, lo[1], length[1], lo2[1], length2[1], False)
     # the result is Hermitian (out[-q] = conj(out[q]), as m and the transfers are): compute
     # the rows q_0 >= 0 and mirror them
-    half = np.ascontiguousarray(T0[K:]) @ m @ np.ascontiguousarray(T1.T)
+    half = T0 @ m @ np.ascontiguousarray(T1.T)
     out = np.empty((n, n), np.complex128)
     for i in range(K + 1):
         a = TWO_PI * i / length2[0]

@@ -143,6 +143,121 @@ def tables(K: int, M: int):
 
 
 # ---------------------------------------------------------------------------------------------
+# reductions in a fixed order (deterministic without fast-math, and vectorizable)
+#
+# A sum written as one accumulator is a chain of dependent additions (4 cycles each): 16 us for
+# a 64 x 64 grid, and without reassociation LLVM may not split it. These sums keep eight partial
+# sums over the columns ``j mod 8`` (row after row), combined as ``((s0 + s1) + (s2 + s3)) +
+# ((s4 + s5) + (s6 + s7))``: the order is in the source, so the result is the same however
+# the kernel was compiled, and the eight independent chains vectorize without fast-math.
+
+
+@_jit
+def _sum2(a):
+    """``a.sum()`` of a 2-D array in the fixed order above."""
+    n0, n1 = a.shape
+    m = n1 - n1 % 8
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    for i in range(n0):
+        for j in range(0, m, 8):
+            s0 += a[i, j]
+            s1 += a[i, j + 1]
+            s2 += a[i, j + 2]
+            s3 += a[i, j + 3]
+            s4 += a[i, j + 4]
+            s5 += a[i, j + 5]
+            s6 += a[i, j + 6]
+            s7 += a[i, j + 7]
+        for j in range(m, n1):
+            s0 += a[i, j]
+    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
+
+
+@_jit
+def _neg_sum2(a):
+    """``np.minimum(a, 0).sum()`` of a 2-D array in the fixed order above."""
+    n0, n1 = a.shape
+    m = n1 - n1 % 8
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    for i in range(n0):
+        for j in range(0, m, 8):
+            s0 += min(a[i, j], 0.0)
+            s1 += min(a[i, j + 1], 0.0)
+            s2 += min(a[i, j + 2], 0.0)
+            s3 += min(a[i, j + 3], 0.0)
+            s4 += min(a[i, j + 4], 0.0)
+            s5 += min(a[i, j + 5], 0.0)
+            s6 += min(a[i, j + 6], 0.0)
+            s7 += min(a[i, j + 7], 0.0)
+        for j in range(m, n1):
+            s0 += min(a[i, j], 0.0)
+    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
+
+
+@_jit
+def _row_dot(a, i, x):
+    """``a[i] @ x`` in the fixed order above (``x`` of length ``a.shape[1]``)."""
+    n1 = a.shape[1]
+    m = n1 - n1 % 8
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    for j in range(0, m, 8):
+        s0 += a[i, j] * x[j]
+        s1 += a[i, j + 1] * x[j + 1]
+        s2 += a[i, j + 2] * x[j + 2]
+        s3 += a[i, j + 3] * x[j + 3]
+        s4 += a[i, j + 4] * x[j + 4]
+        s5 += a[i, j + 5] * x[j + 5]
+        s6 += a[i, j + 6] * x[j + 6]
+        s7 += a[i, j + 7] * x[j + 7]
+    for j in range(m, n1):
+        s0 += a[i, j] * x[j]
+    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
+
+
+@_jit
+def _row_sum(a, i):
+    """``a[i].sum()`` in the fixed order above."""
+    n1 = a.shape[1]
+    m = n1 - n1 % 8
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    for j in range(0, m, 8):
+        s0 += a[i, j]
+        s1 += a[i, j + 1]
+        s2 += a[i, j + 2]
+        s3 += a[i, j + 3]
+        s4 += a[i, j + 4]
+        s5 += a[i, j + 5]
+        s6 += a[i, j + 6]
+        s7 += a[i, j + 7]
+    for j in range(m, n1):
+        s0 += a[i, j]
+    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
+
+
+@_jit
+def _max_min2(a, b):
+    """``(a.max(), b.min())`` of two 2-D arrays of one shape (exact in any order)."""
+    n0, n1 = a.shape
+    m = n1 - n1 % 4
+    a0 = a1 = a2 = a3 = -np.inf
+    b0 = b1 = b2 = b3 = np.inf
+    for i in range(n0):
+        for j in range(0, m, 4):
+            a0 = max(a0, a[i, j])
+            a1 = max(a1, a[i, j + 1])
+            a2 = max(a2, a[i, j + 2])
+            a3 = max(a3, a[i, j + 3])
+            b0 = min(b0, b[i, j])
+            b1 = min(b1, b[i, j + 1])
+            b2 = min(b2, b[i, j + 2])
+            b3 = min(b3, b[i, j + 3])
+        for j in range(m, n1):
+            a0 = max(a0, a[i, j])
+            b0 = min(b0, b[i, j])
+    return max(max(a0, a1), max(a2, a3)), min(min(b0, b1), min(b2, b3))
+
+
+# ---------------------------------------------------------------------------------------------
 # terrain
 
 
@@ -266,10 +381,7 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
     scale = 1.0 / math.sqrt(length[0] * length[1])
     cell = (length[0] / M) * (length[1] / M)
     values = to_grid2(m, Tq, Tx, scale)
-    neg = 0.0
-    for i in range(M):
-        for j in range(M):
-            neg += min(values[i, j], 0.0)
+    neg = _neg_sum2(values)
     xs, ys = grid_axes(lo, length, M)
     h = terrain_depth(xs, ys, C, tpar[0], tpar[1], tpar[2], tpar[3], ipar[0], ipar[1],
                       ipar[2])
@@ -294,15 +406,11 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
             V[i, M - 1] += g * g * ry
     else:
         V[:] = var
-    tmax = -np.inf
-    vmin = np.inf
     for i in range(M):
         for j in range(M):
             e = h[i, j] - z
-            t = -0.5 * (e * e) / V[i, j]
-            W[i, j] = t
-            tmax = max(tmax, t)
-            vmin = min(vmin, V[i, j])
+            W[i, j] = -0.5 * (e * e) / V[i, j]
+    tmax, vmin = _max_min2(W, V)
     W -= tmax
     return values, W, V, -neg * cell, tmax, vmin
 
@@ -312,10 +420,7 @@ def prior_values(m, Tq, Tx, length):
     """Grid values of the prior series and their negative mass (no grid measurement rows)."""
     M = Tx.shape[0]
     values = to_grid2(m, Tq, Tx, 1.0 / math.sqrt(length[0] * length[1]))
-    neg = 0.0
-    for i in range(M):
-        for j in range(M):
-            neg += min(values[i, j], 0.0)
+    neg = _neg_sum2(values)
     return values, -neg * (length[0] / M) * (length[1] / M)
 
 
@@ -397,10 +502,7 @@ def _moments2_marginals(post, m0, m1, xs, ys):
     d1 = ys - my
     c01 = 0.0
     for i in range(M0):
-        acc = 0.0
-        for j in range(M1):
-            acc += post[i, j] * d1[j]
-        c01 += d0[i] * acc
+        c01 += d0[i] * _row_dot(post, i, d1)
     c01 /= total
     mean = np.array([mx, my])
     cov = np.array([[(m0 @ (d0 * d0)) / total, c01], [c01, (m1 @ (d1 * d1)) / total]])
@@ -422,13 +524,11 @@ def bayes_posterior(values, E, V, vmin, lo, length):
     m0 = np.zeros(M)
     m1 = np.zeros(M)
     for i in range(M):
-        acc = 0.0
         for j in range(M):
             p = values[i, j] * (E[i, j] * math.sqrt(vmin / V[i, j]))
             post[i, j] = p
-            acc += p
             m1[j] += p
-        m0[i] = acc
+        m0[i] = _row_sum(post, i)
     Z = m0.sum() * cell
     status = 0
     xs, ys = grid_axes(lo, length, M)
@@ -464,13 +564,9 @@ def posterior_coefficients(post, Tg, Tm, Tq, Tx, length, neg_limit):
     sv = math.sqrt(length[0] * length[1])
     cell = (length[0] / M) * (length[1] / M)
     m = from_grid2(post, Tg, Tm, sv / M**2)
-    m /= post.sum() * cell
+    m /= _sum2(post) * cell
     values = to_grid2(m, Tq, Tx, 1.0 / sv)
-    neg = 0.0
-    for i in range(M):
-        for j in range(M):
-            neg += min(values[i, j], 0.0)
-    neg = -neg * cell
+    neg = -_neg_sum2(values) * cell
     mass = np.nan
     if neg <= neg_limit:
         mass = hermitian_normalize(m, sv)

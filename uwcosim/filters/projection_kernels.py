@@ -241,26 +241,37 @@ def _row_sum(a, i):
 
 
 @_jit
-def _max_min2(a, b):
-    """``(a.max(), b.min())`` of two 2-D arrays of one shape (exact in any order)."""
+def _max2(a):
+    """``a.max()`` of a 2-D array (exact in any order; four running maxima)."""
     n0, n1 = a.shape
     m = n1 - n1 % 4
     a0 = a1 = a2 = a3 = -np.inf
-    b0 = b1 = b2 = b3 = np.inf
     for i in range(n0):
         for j in range(0, m, 4):
             a0 = max(a0, a[i, j])
             a1 = max(a1, a[i, j + 1])
             a2 = max(a2, a[i, j + 2])
             a3 = max(a3, a[i, j + 3])
-            b0 = min(b0, b[i, j])
-            b1 = min(b1, b[i, j + 1])
-            b2 = min(b2, b[i, j + 2])
-            b3 = min(b3, b[i, j + 3])
         for j in range(m, n1):
             a0 = max(a0, a[i, j])
-            b0 = min(b0, b[i, j])
-    return max(max(a0, a1), max(a2, a3)), min(min(b0, b1), min(b2, b3))
+    return max(max(a0, a1), max(a2, a3))
+
+
+@_jit
+def _min2(a):
+    """``a.min()`` of a 2-D array (exact in any order; four running minima)."""
+    n0, n1 = a.shape
+    m = n1 - n1 % 4
+    a0 = a1 = a2 = a3 = np.inf
+    for i in range(n0):
+        for j in range(0, m, 4):
+            a0 = min(a0, a[i, j])
+            a1 = min(a1, a[i, j + 1])
+            a2 = min(a2, a[i, j + 2])
+            a3 = min(a3, a[i, j + 3])
+        for j in range(m, n1):
+            a0 = min(a0, a[i, j])
+    return min(min(a0, a1), min(a2, a3))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -429,11 +440,13 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
     ``(lo, length)`` (``M = Tx.shape[1]`` points per dimension).
 
     ``tpar = (x0, y0, dx, dy)``, ``ipar = (nx, ny, pad)`` describe the map. Returns
-    ``(values, W, V, neg_prior, tmax, vmin)`` with the log-likelihood
-    ``ll = W + tmax - log(V) / 2`` (``W <= 0``, still to be exponentiated): ``V = var +
-    sum_d (dh/dx_d)^2 r_d`` with ``r_d = (res_d / (2 h_d))^2 / 12``, ``res_d = inflation L_d /
-    (2K + 1)``, on twice the central differences (one-sided ones doubled) when ``inflation``
-    > 0, else ``V = var`` and ``ll = W + tmax`` (:meth:`GridLikelihood._terrain_loglik`).
+    ``(values, W, S, neg_prior, tmax, vmin)`` with the log-likelihood
+    ``ll = W + tmax - log(V) / 2`` (``W <= 0``, still to be exponentiated), ``S = 1 / sqrt(V)``
+    and ``vmin = min(V)``: ``V = var + sum_d (dh/dx_d)^2 r_d`` with ``r_d = (res_d / (2
+    h_d))^2 / 12``, ``res_d = inflation L_d / (2K + 1)``, on twice the central differences
+    (one-sided ones doubled) when ``inflation`` > 0, else ``V = var`` and ``ll = W + tmax``
+    (:meth:`GridLikelihood._terrain_loglik`). ``W = -(S (h - z))^2 / 2``: one square root and
+    one division per point serve both ``W`` and the normalization of :func:`bayes_posterior`.
     """
     M = Tx.shape[1]
     K = (m.shape[0] - 1) // 2
@@ -463,13 +476,22 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
             V[i, 0] += g * g * ry
             g = 2.0 * (h[i, M - 1] - h[i, M - 2])
             V[i, M - 1] += g * g * ry
+        vmin = _min2(V)
+        for i in range(M):
+            for j in range(M):
+                s = 1.0 / math.sqrt(V[i, j])
+                e = (h[i, j] - z) * s
+                W[i, j] = -0.5 * (e * e)
+                V[i, j] = s  # V becomes S = 1 / sqrt(V)
     else:
-        V[:] = var
-    for i in range(M):
-        for j in range(M):
-            e = h[i, j] - z
-            W[i, j] = -0.5 * (e * e) / V[i, j]
-    tmax, vmin = _max_min2(W, V)
+        vmin = var
+        s = 1.0 / math.sqrt(var)
+        for i in range(M):
+            for j in range(M):
+                e = (h[i, j] - z) * s
+                W[i, j] = -0.5 * (e * e)
+        V[:] = s
+    tmax = _max2(W)
     W -= tmax
     return values, W, V, -neg * cell, tmax, vmin
 
@@ -569,8 +591,9 @@ def _moments2_marginals(post, m0, m1, xs, ys):
 
 
 @_jit
-def bayes_posterior(values, E, V, vmin, lo, length):
-    """``post = values E sqrt(vmin / V)`` (``E = exp(W - tmax)``), its mass and moments.
+def bayes_posterior(values, E, S, vmin, lo, length):
+    """``post = values E sqrt(vmin) S`` (``E = exp(W - tmax)``, ``S = 1 / sqrt(V)`` of
+    :func:`bayes_terms`, or ones with ``vmin = 1``), its mass and moments.
 
     Returns ``(post, Z, mean, cov, status)``: status 0 ok, 1 no posterior mass, 2 clipped
     (a signed prior: the product of its clip was used, as in ``ProjectionFilter._bayes``), 3
@@ -582,9 +605,10 @@ def bayes_posterior(values, E, V, vmin, lo, length):
     post = np.empty((M, M))
     m0 = np.zeros(M)
     m1 = np.zeros(M)
+    svm = math.sqrt(vmin)
     for i in range(M):
         for j in range(M):
-            p = values[i, j] * (E[i, j] * math.sqrt(vmin / V[i, j]))
+            p = values[i, j] * (E[i, j] * (svm * S[i, j]))
             post[i, j] = p
             m1[j] += p
         m0[i] = _row_sum(post, i)

@@ -7,8 +7,9 @@ the TAN model of seed 000) into a handful of compiled calls:
 
 - :func:`terrain_depth`: the bathymetry B-spline on a tensor grid (separable, 4 + 4 taps);
 - :func:`to_grid2` / :func:`from_grid2`: the series <-> grid quadratures of
-  :mod:`uwcosim.filters.projection_ops` with the Hermitian symmetry folded (half the products),
-  as two BLAS matrix products each;
+  :mod:`uwcosim.filters.projection_ops` with the Hermitian symmetry of the series and the
+  ``n <-> M - n`` symmetry of the quadrature points folded (a quarter of the products of the
+  plain transforms), as BLAS matrix products;
 - :func:`bayes_terms` / :func:`bayes_posterior` / :func:`posterior_coefficients`: the Bayes
   product, its moments and the re-projection of ``ProjectionFilter.update``;
 - in :mod:`uwcosim.filters.projection_kalman`: :func:`shift_decay`, the prediction (exact
@@ -21,7 +22,10 @@ the TAN model of seed 000) into a handful of compiled calls:
 All are reachable from this module (the filters call ``projection_kernels.NAME``).
 
 Every kernel computes what the numpy code computes, in another summation order: results agree
-to round-off (``tests/test_projection_kernels.py`` runs both paths). Exponentials of whole
+to round-off (``tests/test_projection_kernels.py`` runs both paths). The arithmetic is IEEE
+(no fast-math) and every sum has its order written in the source (:func:`_row_sum`): a kernel
+compiled afresh and the same kernel loaded from Numba's cache give the same bits
+(``tests/test_kernel_determinism.py``). Exponentials of whole
 grids stay in numpy (its SIMD ``exp`` is several times faster than a compiled scalar loop).
 
 Numba is optional: without it (or with ``UWCOSIM_NUMBA=0`` in the environment) :data:`ENABLED`
@@ -104,8 +108,9 @@ def _jit(fn):
     """IEEE arithmetic in source order: no fast-math. Reassociation and contraction let LLVM's
     result depend on what it inlines, and a kernel compiled afresh then differed in the last
     bits from the same kernel loaded from Numba's cache, so that the same scenario and seed
-    gave different logs on a fresh machine (measured: 1e-11 m in PFM-PSI's estimate). The
-    price is the vectorized reductions: about 15 % of PFM-PSI's step (docs/benchmarks.md)."""
+    gave different logs on a fresh machine (measured: 1e-11 m in PFM-PSI's estimate). What
+    fast-math bought (vectorized sums) is written out instead: sums over grids keep several
+    partial sums combined in a fixed order (:func:`_row_sum`), legal to vectorize as IEEE."""
     return _register(fn, False)
 
 
@@ -159,45 +164,13 @@ def tables(K: int, M: int):
 
 
 @_jit
-def _sum2(a):
-    """``a.sum()`` of a 2-D array in the fixed order above."""
-    n0, n1 = a.shape
-    m = n1 - n1 % 8
-    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
-    for i in range(n0):
-        for j in range(0, m, 8):
-            s0 += a[i, j]
-            s1 += a[i, j + 1]
-            s2 += a[i, j + 2]
-            s3 += a[i, j + 3]
-            s4 += a[i, j + 4]
-            s5 += a[i, j + 5]
-            s6 += a[i, j + 6]
-            s7 += a[i, j + 7]
-        for j in range(m, n1):
-            s0 += a[i, j]
-    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
-
-
-@_jit
-def _neg_sum2(a):
-    """``np.minimum(a, 0).sum()`` of a 2-D array in the fixed order above."""
-    n0, n1 = a.shape
-    m = n1 - n1 % 8
-    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
-    for i in range(n0):
-        for j in range(0, m, 8):
-            s0 += min(a[i, j], 0.0)
-            s1 += min(a[i, j + 1], 0.0)
-            s2 += min(a[i, j + 2], 0.0)
-            s3 += min(a[i, j + 3], 0.0)
-            s4 += min(a[i, j + 4], 0.0)
-            s5 += min(a[i, j + 5], 0.0)
-            s6 += min(a[i, j + 6], 0.0)
-            s7 += min(a[i, j + 7], 0.0)
-        for j in range(m, n1):
-            s0 += min(a[i, j], 0.0)
-    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
+def _sum2(a, neg):
+    """``a.sum()`` (``np.minimum(a, 0).sum()`` when ``neg``) of a 2-D array: row sums in the
+    fixed order above, added row after row."""
+    s = 0.0
+    for i in range(a.shape[0]):
+        s += _row_sum(a, i, neg)
+    return s
 
 
 @_jit
@@ -221,22 +194,27 @@ def _row_dot(a, i, x):
 
 
 @_jit
-def _row_sum(a, i):
-    """``a[i].sum()`` in the fixed order above."""
+def _clip(v, neg):
+    return min(v, 0.0) if neg else v
+
+
+@_jit
+def _row_sum(a, i, neg):
+    """``a[i].sum()`` (of ``min(a[i], 0)`` when ``neg``) in the fixed order above."""
     n1 = a.shape[1]
     m = n1 - n1 % 8
     s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
     for j in range(0, m, 8):
-        s0 += a[i, j]
-        s1 += a[i, j + 1]
-        s2 += a[i, j + 2]
-        s3 += a[i, j + 3]
-        s4 += a[i, j + 4]
-        s5 += a[i, j + 5]
-        s6 += a[i, j + 6]
-        s7 += a[i, j + 7]
+        s0 += _clip(a[i, j], neg)
+        s1 += _clip(a[i, j + 1], neg)
+        s2 += _clip(a[i, j + 2], neg)
+        s3 += _clip(a[i, j + 3], neg)
+        s4 += _clip(a[i, j + 4], neg)
+        s5 += _clip(a[i, j + 5], neg)
+        s6 += _clip(a[i, j + 6], neg)
+        s7 += _clip(a[i, j + 7], neg)
     for j in range(m, n1):
-        s0 += a[i, j]
+        s0 += _clip(a[i, j], neg)
     return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
 
 
@@ -453,7 +431,7 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
     scale = 1.0 / math.sqrt(length[0] * length[1])
     cell = (length[0] / M) * (length[1] / M)
     values = to_grid2(m, Tq, Tx, scale)
-    neg = _neg_sum2(values)
+    neg = _sum2(values, True)
     xs, ys = grid_axes(lo, length, M)
     h = terrain_depth(xs, ys, C, tpar[0], tpar[1], tpar[2], tpar[3], ipar[0], ipar[1],
                       ipar[2])
@@ -501,7 +479,7 @@ def prior_values(m, Tq, Tx, length):
     """Grid values of the prior series and their negative mass (no grid measurement rows)."""
     M = Tx.shape[1]
     values = to_grid2(m, Tq, Tx, 1.0 / math.sqrt(length[0] * length[1]))
-    neg = _neg_sum2(values)
+    neg = _sum2(values, True)
     return values, -neg * (length[0] / M) * (length[1] / M)
 
 
@@ -611,7 +589,7 @@ def bayes_posterior(values, E, S, vmin, lo, length):
             p = values[i, j] * (E[i, j] * (svm * S[i, j]))
             post[i, j] = p
             m1[j] += p
-        m0[i] = _row_sum(post, i)
+        m0[i] = _row_sum(post, i, False)
     Z = m0.sum() * cell
     status = 0
     xs, ys = grid_axes(lo, length, M)
@@ -647,9 +625,9 @@ def posterior_coefficients(post, Tg, Tm, Tq, Tx, length, neg_limit):
     sv = math.sqrt(length[0] * length[1])
     cell = (length[0] / M) * (length[1] / M)
     m = from_grid2(post, Tg, Tm, sv / M**2)
-    m /= _sum2(post) * cell
+    m /= _sum2(post, False) * cell
     values = to_grid2(m, Tq, Tx, 1.0 / sv)
-    neg = -_neg_sum2(values) * cell
+    neg = -_sum2(values, True) * cell
     mass = np.nan
     if neg <= neg_limit:
         mass = hermitian_normalize(m, sv)

@@ -7,8 +7,9 @@ the TAN model of seed 000) into a handful of compiled calls:
 
 - :func:`terrain_depth`: the bathymetry B-spline on a tensor grid (separable, 4 + 4 taps);
 - :func:`to_grid2` / :func:`from_grid2`: the series <-> grid quadratures of
-  :mod:`uwcosim.filters.projection_ops` with the Hermitian symmetry folded (half the products),
-  as two BLAS matrix products each;
+  :mod:`uwcosim.filters.projection_ops` with the Hermitian symmetry of the series and the
+  ``n <-> M - n`` symmetry of the quadrature points folded (a quarter of the products of the
+  plain transforms), as BLAS matrix products;
 - :func:`bayes_terms` / :func:`bayes_posterior` / :func:`posterior_coefficients`: the Bayes
   product, its moments and the re-projection of ``ProjectionFilter.update``;
 - in :mod:`uwcosim.filters.projection_kalman`: :func:`shift_decay`, the prediction (exact
@@ -21,7 +22,10 @@ the TAN model of seed 000) into a handful of compiled calls:
 All are reachable from this module (the filters call ``projection_kernels.NAME``).
 
 Every kernel computes what the numpy code computes, in another summation order: results agree
-to round-off (``tests/test_projection_kernels.py`` runs both paths). Exponentials of whole
+to round-off (``tests/test_projection_kernels.py`` runs both paths). The arithmetic is IEEE
+(no fast-math) and every sum has its order written in the source (:func:`_row_sum`): a kernel
+compiled afresh and the same kernel loaded from Numba's cache give the same bits
+(``tests/test_kernel_determinism.py``). Exponentials of whole
 grids stay in numpy (its SIMD ``exp`` is several times faster than a compiled scalar loop).
 
 Numba is optional: without it (or with ``UWCOSIM_NUMBA=0`` in the environment) :data:`ENABLED`
@@ -104,8 +108,9 @@ def _jit(fn):
     """IEEE arithmetic in source order: no fast-math. Reassociation and contraction let LLVM's
     result depend on what it inlines, and a kernel compiled afresh then differed in the last
     bits from the same kernel loaded from Numba's cache, so that the same scenario and seed
-    gave different logs on a fresh machine (measured: 1e-11 m in PFM-PSI's estimate). The
-    price is the vectorized reductions: about 15 % of PFM-PSI's step (docs/benchmarks.md)."""
+    gave different logs on a fresh machine (measured: 1e-11 m in PFM-PSI's estimate). What
+    fast-math bought (vectorized sums) is written out instead: sums over grids keep several
+    partial sums combined in a fixed order (:func:`_row_sum`), legal to vectorize as IEEE."""
     return _register(fn, False)
 
 
@@ -118,28 +123,133 @@ _TABLES: dict = {}
 def tables(K: int, M: int):
     """Trigonometric tables of the folded transforms for ``q = -K..K`` on ``M`` points.
 
-    Returns ``(Tq, Tx, Tg, Tm)``: ``Tq = [[C, S], [-S, C]]`` with ``C[q, n] = cos(2 pi q n / M)``
-    (``(2(2K+1), 2M)``, for ``[m_r | m_i] @ Tq``); ``Tx = [w C0' | -w S0']`` (``(M, 2(K+1))``,
-    ``q = 0..K``, ``w = 1, 2, 2, ...``); ``Tg = [C' | S']`` (``(M, 2(2K+1))``); ``Tm = [C0; S0]``
-    (``(2(K+1), M)``).
+    Both grid directions are folded by the symmetry of the points ``n`` and ``M - n`` (equal
+    cosines, opposite sines): only ``n = 0..R-1``, ``R = M // 2 + 1``, enter the products (half
+    the arithmetic). With ``C[q, n] = cos(2 pi q n / M)``, ``S`` the sines (``q = -K..K``,
+    ``n < R``) and ``C0``, ``S0`` their rows ``q = 0..K``, returns ``(Tq, Tx, Tg, Tm)``:
+    ``Tq = [C | S]`` (``(2K+1, 2R)``); ``Tx`` (``(2, M, K+1)``, ``M`` read from its shape) with
+    ``Tx[0, :R] = (w C0)'``, ``Tx[1, :R] = (w S0)'``, ``w = 1, 2, 2, ...``; ``Tg = [C', S']``
+    (``(2, R, 2K+1)``); ``Tm = [C0, S0]`` (``(2, K+1, R)``).
     """
     key = (K, M)
     out = _TABLES.get(key)
     if out is None:
-        n = np.arange(M)
+        R = M // 2 + 1
+        n = np.arange(R)
         q = np.arange(-K, K + 1)
         ang = TWO_PI * np.outer(q, n) / M
         C, S = np.cos(ang), np.sin(ang)
-        Tq = np.ascontiguousarray(np.block([[C, S], [-S, C]]))
+        Tq = np.ascontiguousarray(np.hstack([C, S]))
         q0 = np.arange(K + 1)
         ang0 = TWO_PI * np.outer(q0, n) / M
         C0, S0 = np.cos(ang0), np.sin(ang0)
         w = np.where(q0 == 0, 1.0, 2.0)[:, None]
-        Tx = np.ascontiguousarray(np.hstack([(w * C0).T, -(w * S0).T]))
-        Tg = np.ascontiguousarray(np.hstack([C.T, S.T]))
-        Tm = np.ascontiguousarray(np.vstack([C0, S0]))
+        Tx = np.zeros((2, M, K + 1))
+        Tx[0, :R] = (w * C0).T
+        Tx[1, :R] = (w * S0).T
+        Tg = np.ascontiguousarray(np.stack([C.T, S.T]))
+        Tm = np.ascontiguousarray(np.stack([C0, S0]))
         out = _TABLES[key] = (Tq, Tx, Tg, Tm)
     return out
+
+
+# ---------------------------------------------------------------------------------------------
+# reductions in a fixed order (deterministic without fast-math, and vectorizable)
+#
+# A sum written as one accumulator is a chain of dependent additions (4 cycles each): 16 us for
+# a 64 x 64 grid, and without reassociation LLVM may not split it. These sums keep eight partial
+# sums over the columns ``j mod 8`` (row after row), combined as ``((s0 + s1) + (s2 + s3)) +
+# ((s4 + s5) + (s6 + s7))``: the order is in the source, so the result is the same however
+# the kernel was compiled, and the eight independent chains vectorize without fast-math.
+
+
+@_jit
+def _sum2(a, neg):
+    """``a.sum()`` (``np.minimum(a, 0).sum()`` when ``neg``) of a 2-D array: row sums in the
+    fixed order above, added row after row."""
+    s = 0.0
+    for i in range(a.shape[0]):
+        s += _row_sum(a, i, neg)
+    return s
+
+
+@_jit
+def _row_dot(a, i, x):
+    """``a[i] @ x`` in the fixed order above (``x`` of length ``a.shape[1]``)."""
+    n1 = a.shape[1]
+    m = n1 - n1 % 8
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    for j in range(0, m, 8):
+        s0 += a[i, j] * x[j]
+        s1 += a[i, j + 1] * x[j + 1]
+        s2 += a[i, j + 2] * x[j + 2]
+        s3 += a[i, j + 3] * x[j + 3]
+        s4 += a[i, j + 4] * x[j + 4]
+        s5 += a[i, j + 5] * x[j + 5]
+        s6 += a[i, j + 6] * x[j + 6]
+        s7 += a[i, j + 7] * x[j + 7]
+    for j in range(m, n1):
+        s0 += a[i, j] * x[j]
+    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
+
+
+@_jit
+def _clip(v, neg):
+    return min(v, 0.0) if neg else v
+
+
+@_jit
+def _row_sum(a, i, neg):
+    """``a[i].sum()`` (of ``min(a[i], 0)`` when ``neg``) in the fixed order above."""
+    n1 = a.shape[1]
+    m = n1 - n1 % 8
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    for j in range(0, m, 8):
+        s0 += _clip(a[i, j], neg)
+        s1 += _clip(a[i, j + 1], neg)
+        s2 += _clip(a[i, j + 2], neg)
+        s3 += _clip(a[i, j + 3], neg)
+        s4 += _clip(a[i, j + 4], neg)
+        s5 += _clip(a[i, j + 5], neg)
+        s6 += _clip(a[i, j + 6], neg)
+        s7 += _clip(a[i, j + 7], neg)
+    for j in range(m, n1):
+        s0 += _clip(a[i, j], neg)
+    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
+
+
+@_jit
+def _max2(a):
+    """``a.max()`` of a 2-D array (exact in any order; four running maxima)."""
+    n0, n1 = a.shape
+    m = n1 - n1 % 4
+    a0 = a1 = a2 = a3 = -np.inf
+    for i in range(n0):
+        for j in range(0, m, 4):
+            a0 = max(a0, a[i, j])
+            a1 = max(a1, a[i, j + 1])
+            a2 = max(a2, a[i, j + 2])
+            a3 = max(a3, a[i, j + 3])
+        for j in range(m, n1):
+            a0 = max(a0, a[i, j])
+    return max(max(a0, a1), max(a2, a3))
+
+
+@_jit
+def _min2(a):
+    """``a.min()`` of a 2-D array (exact in any order; four running minima)."""
+    n0, n1 = a.shape
+    m = n1 - n1 % 4
+    a0 = a1 = a2 = a3 = np.inf
+    for i in range(n0):
+        for j in range(0, m, 4):
+            a0 = min(a0, a[i, j])
+            a1 = min(a1, a[i, j + 1])
+            a2 = min(a2, a[i, j + 2])
+            a3 = min(a3, a[i, j + 3])
+        for j in range(m, n1):
+            a0 = min(a0, a[i, j])
+    return min(min(a0, a1), min(a2, a3))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -196,37 +306,90 @@ def terrain_depth(xs, ys, C, x0, y0, dx, dy, nx, ny, pad):
 
 @_jit
 def to_grid2(m, Tq, Tx, scale):
-    """Real values on the ``M x M`` grid of the Hermitian series ``m`` (``(2K+1, 2K+1)``)."""
+    """Real values on the ``M x M`` grid of the Hermitian series ``m`` (``(2K+1, 2K+1)``).
+
+    The rows ``q_0 >= 0`` (Hermitian symmetry), the points ``n < R`` of both directions (the
+    fold of :func:`tables`): ``A(n_1) = [m_r | m_i] (C + iS)`` from the four real products
+    ``EC = m_r C``, ``ES = m_i S``, ``FS = m_r S``, ``FC = m_i C`` (``A(M - n_1)`` flips the
+    sines), then ``P = w C0' A_r``, ``Q = w S0' A_i``: ``out[n_0] = P - Q``,
+    ``out[M - n_0] = P + Q``."""
     K = (m.shape[0] - 1) // 2
     n = m.shape[1]
-    half = np.empty((K + 1, 2 * n))
+    M = Tx.shape[1]
+    R = M // 2 + 1
+    H = (M - 1) // 2  # points n = 1..H have a mirror M - n
+    half = np.empty((2 * (K + 1), n))
     for j in range(K + 1):
         for q in range(n):
             v = m[K + j, q]
             half[j, q] = v.real
-            half[j, n + q] = v.imag
-    A = half @ Tq  # [A_r | A_i], (K+1, 2M)
-    M = Tx.shape[0]
-    B = np.empty((2 * (K + 1), M))
-    B[:K + 1] = A[:, :M]
-    B[K + 1:] = A[:, M:]
-    out = Tx @ B
-    out *= scale
+            half[K + 1 + j, q] = v.imag
+    E = half @ Tq  # [[EC, FS], [FC, ES]], (2(K+1), 2R)
+    Ar = np.empty((K + 1, M))
+    Ai = np.empty((K + 1, M))
+    for j in range(K + 1):
+        for c in range(R):
+            Ar[j, c] = E[j, c] - E[K + 1 + j, R + c]
+            Ai[j, c] = E[j, R + c] + E[K + 1 + j, c]
+        for c in range(1, H + 1):
+            Ar[j, M - c] = E[j, c] + E[K + 1 + j, R + c]
+            Ai[j, M - c] = E[K + 1 + j, c] - E[j, R + c]
+    P = Tx[0, :R] @ Ar
+    Q = Tx[1, :R] @ Ai
+    out = np.empty((M, M))
+    for r in range(R):
+        for c in range(M):
+            out[r, c] = (P[r, c] - Q[r, c]) * scale
+    for r in range(1, H + 1):
+        for c in range(M):
+            out[M - r, c] = (P[r, c] + Q[r, c]) * scale
     return out
 
 
 @_jit
 def from_grid2(g, Tg, Tm, scale):
-    """Coefficients ``<g, phi_q>`` (FFT quadrature) of real grid values ``g`` (``M x M``)."""
-    n = Tg.shape[1] // 2
+    """Coefficients ``<g, phi_q>`` (FFT quadrature) of real grid values ``g`` (``M x M``).
+
+    Folded as :func:`to_grid2`: the rows ``n_0`` and ``M - n_0`` of ``g`` are added (cosine
+    part) and subtracted (sine part) before the products with ``C0``, ``S0`` (``q_0 >= 0``:
+    Hermitian symmetry), then the columns of those products likewise before ``C'``, ``S'``."""
+    n = Tg.shape[2]
     K = (n - 1) // 2
-    B = g @ Tg  # [B_c | B_s]: B_c = g C', B_s = g S'
-    P = Tm @ B  # [[C0 B_c, C0 B_s], [S0 B_c, S0 B_s]]
+    M = g.shape[0]
+    R = M // 2 + 1
+    H = (M - 1) // 2
+    Ge = np.empty((R, M))
+    Go = np.empty((R, M))
+    for r in range(R):  # a row without mirror (0, and M/2 when M is even) as it is
+        for c in range(M):
+            Ge[r, c] = g[r, c]
+            Go[r, c] = g[r, c]
+    for r in range(1, H + 1):
+        for c in range(M):
+            Ge[r, c] = g[r, c] + g[M - r, c]
+            Go[r, c] = g[r, c] - g[M - r, c]
+    X0 = Tm[0] @ Ge  # C0 g, (K+1, M)
+    X1 = Tm[1] @ Go  # S0 g
+    Xe = np.empty((2 * (K + 1), R))  # [C0 g; S0 g], columns folded: even, odd
+    Xo = np.empty((2 * (K + 1), R))
+    for j in range(K + 1):
+        for c in range(R):
+            Xe[j, c] = X0[j, c]
+            Xo[j, c] = X0[j, c]
+            Xe[K + 1 + j, c] = X1[j, c]
+            Xo[K + 1 + j, c] = X1[j, c]
+        for c in range(1, H + 1):
+            Xe[j, c] = X0[j, c] + X0[j, M - c]
+            Xo[j, c] = X0[j, c] - X0[j, M - c]
+            Xe[K + 1 + j, c] = X1[j, c] + X1[j, M - c]
+            Xo[K + 1 + j, c] = X1[j, c] - X1[j, M - c]
+    PC = Xe @ Tg[0]  # [C0 g C'; S0 g C'], (2(K+1), 2K+1)
+    PS = Xo @ Tg[1]  # [C0 g S'; S0 g S']
     m = np.empty((n, n), np.complex128)
     for j in range(K + 1):
         for q in range(n):
-            re = P[j, q] - P[K + 1 + j, n + q]
-            im = -P[j, n + q] - P[K + 1 + j, q]
+            re = PC[j, q] - PS[K + 1 + j, q]
+            im = -PS[j, q] - PC[K + 1 + j, q]
             m[K + j, q] = complex(re * scale, im * scale)
     for j in range(1, K + 1):
         for q in range(n):
@@ -252,24 +415,23 @@ def grid_axes(lo, length, M):
 @_jit_fast
 def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
     """Prior values, terrain log-likelihood terms and the prior's negative mass on the box
-    ``(lo, length)`` (``M = Tx.shape[0]`` points per dimension).
+    ``(lo, length)`` (``M = Tx.shape[1]`` points per dimension).
 
     ``tpar = (x0, y0, dx, dy)``, ``ipar = (nx, ny, pad)`` describe the map. Returns
-    ``(values, W, V, neg_prior, tmax, vmin)`` with the log-likelihood
-    ``ll = W + tmax - log(V) / 2`` (``W <= 0``, still to be exponentiated): ``V = var +
-    sum_d (dh/dx_d)^2 r_d`` with ``r_d = (res_d / (2 h_d))^2 / 12``, ``res_d = inflation L_d /
-    (2K + 1)``, on twice the central differences (one-sided ones doubled) when ``inflation``
-    > 0, else ``V = var`` and ``ll = W + tmax`` (:meth:`GridLikelihood._terrain_loglik`).
+    ``(values, W, S, neg_prior, tmax, vmin)`` with the log-likelihood
+    ``ll = W + tmax - log(V) / 2`` (``W <= 0``, still to be exponentiated), ``S = 1 / sqrt(V)``
+    and ``vmin = min(V)``: ``V = var + sum_d (dh/dx_d)^2 r_d`` with ``r_d = (res_d / (2
+    h_d))^2 / 12``, ``res_d = inflation L_d / (2K + 1)``, on twice the central differences
+    (one-sided ones doubled) when ``inflation`` > 0, else ``V = var`` and ``ll = W + tmax``
+    (:meth:`GridLikelihood._terrain_loglik`). ``W = -(S (h - z))^2 / 2``: one square root and
+    one division per point serve both ``W`` and the normalization of :func:`bayes_posterior`.
     """
-    M = Tx.shape[0]
+    M = Tx.shape[1]
     K = (m.shape[0] - 1) // 2
     scale = 1.0 / math.sqrt(length[0] * length[1])
     cell = (length[0] / M) * (length[1] / M)
     values = to_grid2(m, Tq, Tx, scale)
-    neg = 0.0
-    for i in range(M):
-        for j in range(M):
-            neg += min(values[i, j], 0.0)
+    neg = _sum2(values, True)
     xs, ys = grid_axes(lo, length, M)
     h = terrain_depth(xs, ys, C, tpar[0], tpar[1], tpar[2], tpar[3], ipar[0], ipar[1],
                       ipar[2])
@@ -292,17 +454,22 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
             V[i, 0] += g * g * ry
             g = 2.0 * (h[i, M - 1] - h[i, M - 2])
             V[i, M - 1] += g * g * ry
+        vmin = _min2(V)
+        for i in range(M):
+            for j in range(M):
+                s = 1.0 / math.sqrt(V[i, j])
+                e = (h[i, j] - z) * s
+                W[i, j] = -0.5 * (e * e)
+                V[i, j] = s  # V becomes S = 1 / sqrt(V)
     else:
-        V[:] = var
-    tmax = -np.inf
-    vmin = np.inf
-    for i in range(M):
-        for j in range(M):
-            e = h[i, j] - z
-            t = -0.5 * (e * e) / V[i, j]
-            W[i, j] = t
-            tmax = max(tmax, t)
-            vmin = min(vmin, V[i, j])
+        vmin = var
+        s = 1.0 / math.sqrt(var)
+        for i in range(M):
+            for j in range(M):
+                e = (h[i, j] - z) * s
+                W[i, j] = -0.5 * (e * e)
+        V[:] = s
+    tmax = _max2(W)
     W -= tmax
     return values, W, V, -neg * cell, tmax, vmin
 
@@ -310,12 +477,9 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
 @_jit_fast
 def prior_values(m, Tq, Tx, length):
     """Grid values of the prior series and their negative mass (no grid measurement rows)."""
-    M = Tx.shape[0]
+    M = Tx.shape[1]
     values = to_grid2(m, Tq, Tx, 1.0 / math.sqrt(length[0] * length[1]))
-    neg = 0.0
-    for i in range(M):
-        for j in range(M):
-            neg += min(values[i, j], 0.0)
+    neg = _sum2(values, True)
     return values, -neg * (length[0] / M) * (length[1] / M)
 
 
@@ -397,10 +561,7 @@ def _moments2_marginals(post, m0, m1, xs, ys):
     d1 = ys - my
     c01 = 0.0
     for i in range(M0):
-        acc = 0.0
-        for j in range(M1):
-            acc += post[i, j] * d1[j]
-        c01 += d0[i] * acc
+        c01 += d0[i] * _row_dot(post, i, d1)
     c01 /= total
     mean = np.array([mx, my])
     cov = np.array([[(m0 @ (d0 * d0)) / total, c01], [c01, (m1 @ (d1 * d1)) / total]])
@@ -408,8 +569,9 @@ def _moments2_marginals(post, m0, m1, xs, ys):
 
 
 @_jit
-def bayes_posterior(values, E, V, vmin, lo, length):
-    """``post = values E sqrt(vmin / V)`` (``E = exp(W - tmax)``), its mass and moments.
+def bayes_posterior(values, E, S, vmin, lo, length):
+    """``post = values E sqrt(vmin) S`` (``E = exp(W - tmax)``, ``S = 1 / sqrt(V)`` of
+    :func:`bayes_terms`, or ones with ``vmin = 1``), its mass and moments.
 
     Returns ``(post, Z, mean, cov, status)``: status 0 ok, 1 no posterior mass, 2 clipped
     (a signed prior: the product of its clip was used, as in ``ProjectionFilter._bayes``), 3
@@ -421,14 +583,13 @@ def bayes_posterior(values, E, V, vmin, lo, length):
     post = np.empty((M, M))
     m0 = np.zeros(M)
     m1 = np.zeros(M)
+    svm = math.sqrt(vmin)
     for i in range(M):
-        acc = 0.0
         for j in range(M):
-            p = values[i, j] * (E[i, j] * math.sqrt(vmin / V[i, j]))
+            p = values[i, j] * (E[i, j] * (svm * S[i, j]))
             post[i, j] = p
-            acc += p
             m1[j] += p
-        m0[i] = acc
+        m0[i] = _row_sum(post, i, False)
     Z = m0.sum() * cell
     status = 0
     xs, ys = grid_axes(lo, length, M)
@@ -464,13 +625,9 @@ def posterior_coefficients(post, Tg, Tm, Tq, Tx, length, neg_limit):
     sv = math.sqrt(length[0] * length[1])
     cell = (length[0] / M) * (length[1] / M)
     m = from_grid2(post, Tg, Tm, sv / M**2)
-    m /= post.sum() * cell
+    m /= _sum2(post, False) * cell
     values = to_grid2(m, Tq, Tx, 1.0 / sv)
-    neg = 0.0
-    for i in range(M):
-        for j in range(M):
-            neg += min(values[i, j], 0.0)
-    neg = -neg * cell
+    neg = -_sum2(values, True) * cell
     mass = np.nan
     if neg <= neg_limit:
         mass = hermitian_normalize(m, sv)

@@ -18,7 +18,7 @@ import sys
 
 import pytest
 
-from uwcosim.filters import projection_kernels as pk
+from uwcosim.filters.grid import projection_kernels as pk
 
 pytestmark = pytest.mark.skipif(not pk.ENABLED, reason="Numba not installed or disabled")
 
@@ -28,16 +28,16 @@ _SCRIPT = r"""
 import sys
 import numpy as np
 import uwcosim.filters  # noqa: F401  (registers the estimators)
-from uwcosim.filters import projection_kernels as pk
+from uwcosim.filters.grid import projection_kernels as pk
 from uwcosim.filters.base import ESTIMATORS
-from uwcosim.models.bathymetry import synthetic_bathymetry
-from uwcosim.models.statespace import simulate, wandering_heading
+from uwcosim.models.terrain import synthetic_bathymetry
+from uwcosim.models.trajectory import simulate, wandering_heading
 from uwcosim.models.tan import tan_model
 
 model = tan_model([0.05, 0.05, 1e-4, 1e-4], 0.03, 2.0, terrain=synthetic_bathymetry(3))
 rng = np.random.default_rng(7)
 x0 = np.array([3000.0, 16000.0, 0.5, 0.0])
-X, U, Z = simulate(model, x0, wandering_heading(rng), 25, rng, noise="held")
+X, U, Z = simulate(model.symbolic, x0, wandering_heading(rng), 25, rng, noise="held")
 P0 = np.diag([30.0**2, 30.0**2, 0.05**2, 0.05**2])
 xe0 = x0 + rng.standard_normal(4) * np.sqrt(np.diag(P0))
 out = []

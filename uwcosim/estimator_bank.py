@@ -24,7 +24,7 @@ import numpy as np
 from uwcosim.errors import FilterDivergence, ScenarioError
 from uwcosim.evaluation.metrics import nees
 from uwcosim.filters import Estimator
-from uwcosim.filters.grid.projection_kernels import interrupted
+from uwcosim.filters.grid.jit import interrupted
 from uwcosim.filters.numerics import check_finite
 from uwcosim.master.sources import stream
 

@@ -13,15 +13,9 @@ import math
 
 import numpy as np
 
-from uwcosim.filters.grid.projection_kernels import (
-    TWO_PI,
-    _jit,
-    _jit_fast,
-    _moments2,
-    _moments2_marginals,
-    _sym,
-    terrain_depth,
-)
+from uwcosim.filters.grid.grid_moments import _moments2, _moments2_marginals
+from uwcosim.filters.grid.jit import _jit, _jit_fast
+from uwcosim.filters.grid.projection_kernels import TWO_PI, _sym, terrain_depth
 
 # ---------------------------------------------------------------------------------------------
 # point mass

@@ -14,9 +14,9 @@ import math
 
 import numpy as np
 
+from uwcosim.filters.grid.jit import _jit
 from uwcosim.filters.grid.projection_kernels import (
     TWO_PI,
-    _jit,
     _sym,
     box,
     hermitian_normalize,

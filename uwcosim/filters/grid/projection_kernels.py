@@ -36,82 +36,29 @@ cached on disk (``cache=True``), so campaign worker processes load them instead 
 
 from __future__ import annotations
 
-import functools
-import importlib.util
 import math
-import os
 
 import numpy as np
 
-ENABLED = (importlib.util.find_spec("numba") is not None
-           and os.environ.get("UWCOSIM_NUMBA", "1") != "0")
+from uwcosim.filters.grid.grid_moments import (
+    _floor_moments,
+    _moments2,
+    _moments2_marginals,
+    grid_moments2,
+    moments2,
+)
+from uwcosim.filters.grid.jit import (
+    ENABLED,
+    _jit,
+    _jit_fast,
+    _max2,
+    _min2,
+    _row_sum,
+    _sum2,
+    interrupted,
+)
 
 TWO_PI = 2.0 * np.pi
-
-# Numba is imported (about 0.5 s) and the kernels are bound to their compiled versions at the
-# first call of any kernel, not at import: scenarios without these filters do not pay for it.
-# Kernels live in this module, projection_kalman and point_mass_kernels; all register here.
-_PLAIN: list[tuple] = []  # (python function, fastmath flags, first-call stub)
-
-
-def _compile_all() -> None:
-    """Compile every registered kernel (lazily: Numba compiles or loads a kernel from its
-    on-disk cache at its first call) and bind the compiled kernels wherever the modules hold
-    the first-call stubs (their own names and the names they import from each other)."""
-    import numba
-
-    compiled = {}
-    spaces = {}
-    for fn, fastmath, stub in _PLAIN:
-        jit = numba.njit(cache=True, nogil=True, error_model="numpy", fastmath=fastmath)
-        compiled[id(stub)] = (stub, jit(fn))
-        spaces[id(fn.__globals__)] = fn.__globals__
-    for g in spaces.values():
-        for name, value in list(g.items()):
-            hit = compiled.get(id(value))
-            if hit is not None and hit[0] is value:
-                g[name] = hit[1]
-    _PLAIN.clear()
-
-
-def _register(fn, fastmath):
-    @functools.wraps(fn)
-    def first_call(*args):
-        if _PLAIN:
-            _compile_all()
-        return fn.__globals__[fn.__name__](*args)
-
-    _PLAIN.append((fn, fastmath, first_call))
-    return first_call
-
-
-def interrupted(exc: BaseException) -> bool:
-    """Whether ``exc`` is a KeyboardInterrupt that a compiled kernel wrapped: Ctrl-C landing in
-    the Python code Numba runs while it returns arrays surfaces as a ``SystemError`` caused by
-    the ``KeyboardInterrupt`` (callers re-raise it as the interrupt it is)."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return False
-
-
-def _jit_fast(fn):
-    """Kernels that test nothing for finiteness (IEEE arithmetic, as :func:`_jit`; kept apart
-    so that their flags can be revisited on their own)."""
-    return _register(fn, False)
-
-
-def _jit(fn):
-    """IEEE arithmetic in source order: no fast-math. Reassociation and contraction let LLVM's
-    result depend on what it inlines, and a kernel compiled afresh then differed in the last
-    bits from the same kernel loaded from Numba's cache, so that the same scenario and seed
-    gave different logs on a fresh machine (measured: 1e-11 m in PFM-PSI's estimate). What
-    fast-math bought (vectorized sums) is written out instead: sums over grids keep several
-    partial sums combined in a fixed order (:func:`_row_sum`), legal to vectorize as IEEE."""
-    return _register(fn, False)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -151,105 +98,6 @@ def tables(K: int, M: int):
         Tm = np.ascontiguousarray(np.stack([C0, S0]))
         out = _TABLES[key] = (Tq, Tx, Tg, Tm)
     return out
-
-
-# ---------------------------------------------------------------------------------------------
-# reductions in a fixed order (deterministic without fast-math, and vectorizable)
-#
-# A sum written as one accumulator is a chain of dependent additions (4 cycles each): 16 us for
-# a 64 x 64 grid, and without reassociation LLVM may not split it. These sums keep eight partial
-# sums over the columns ``j mod 8`` (row after row), combined as ``((s0 + s1) + (s2 + s3)) +
-# ((s4 + s5) + (s6 + s7))``: the order is in the source, so the result is the same however
-# the kernel was compiled, and the eight independent chains vectorize without fast-math.
-
-
-@_jit
-def _sum2(a, neg):
-    """``a.sum()`` (``np.minimum(a, 0).sum()`` when ``neg``) of a 2-D array: row sums in the
-    fixed order above, added row after row."""
-    s = 0.0
-    for i in range(a.shape[0]):
-        s += _row_sum(a, i, neg)
-    return s
-
-
-@_jit
-def _row_dot(a, i, x):
-    """``a[i] @ x`` in the fixed order above (``x`` of length ``a.shape[1]``)."""
-    n1 = a.shape[1]
-    m = n1 - n1 % 8
-    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
-    for j in range(0, m, 8):
-        s0 += a[i, j] * x[j]
-        s1 += a[i, j + 1] * x[j + 1]
-        s2 += a[i, j + 2] * x[j + 2]
-        s3 += a[i, j + 3] * x[j + 3]
-        s4 += a[i, j + 4] * x[j + 4]
-        s5 += a[i, j + 5] * x[j + 5]
-        s6 += a[i, j + 6] * x[j + 6]
-        s7 += a[i, j + 7] * x[j + 7]
-    for j in range(m, n1):
-        s0 += a[i, j] * x[j]
-    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
-
-
-@_jit
-def _clip(v, neg):
-    return min(v, 0.0) if neg else v
-
-
-@_jit
-def _row_sum(a, i, neg):
-    """``a[i].sum()`` (of ``min(a[i], 0)`` when ``neg``) in the fixed order above."""
-    n1 = a.shape[1]
-    m = n1 - n1 % 8
-    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
-    for j in range(0, m, 8):
-        s0 += _clip(a[i, j], neg)
-        s1 += _clip(a[i, j + 1], neg)
-        s2 += _clip(a[i, j + 2], neg)
-        s3 += _clip(a[i, j + 3], neg)
-        s4 += _clip(a[i, j + 4], neg)
-        s5 += _clip(a[i, j + 5], neg)
-        s6 += _clip(a[i, j + 6], neg)
-        s7 += _clip(a[i, j + 7], neg)
-    for j in range(m, n1):
-        s0 += _clip(a[i, j], neg)
-    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
-
-
-@_jit
-def _max2(a):
-    """``a.max()`` of a 2-D array (exact in any order; four running maxima)."""
-    n0, n1 = a.shape
-    m = n1 - n1 % 4
-    a0 = a1 = a2 = a3 = -np.inf
-    for i in range(n0):
-        for j in range(0, m, 4):
-            a0 = max(a0, a[i, j])
-            a1 = max(a1, a[i, j + 1])
-            a2 = max(a2, a[i, j + 2])
-            a3 = max(a3, a[i, j + 3])
-        for j in range(m, n1):
-            a0 = max(a0, a[i, j])
-    return max(max(a0, a1), max(a2, a3))
-
-
-@_jit
-def _min2(a):
-    """``a.min()`` of a 2-D array (exact in any order; four running minima)."""
-    n0, n1 = a.shape
-    m = n1 - n1 % 4
-    a0 = a1 = a2 = a3 = np.inf
-    for i in range(n0):
-        for j in range(0, m, 4):
-            a0 = min(a0, a[i, j])
-            a1 = min(a1, a[i, j + 1])
-            a2 = min(a2, a[i, j + 2])
-            a3 = min(a3, a[i, j + 3])
-        for j in range(m, n1):
-            a0 = min(a0, a[i, j])
-    return min(min(a0, a1), min(a2, a3))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -481,91 +329,6 @@ def prior_values(m, Tq, Tx, length):
     values = to_grid2(m, Tq, Tx, 1.0 / math.sqrt(length[0] * length[1]))
     neg = _sum2(values, True)
     return values, -neg * (length[0] / M) * (length[1] / M)
-
-
-@_jit
-def moments2(post, xs, ys):
-    """Mean and covariance of the weights ``post`` on the grid ``xs x ys``."""
-    return _moments2(post, xs, ys, False)
-
-
-@_jit
-def _moments2(post, xs, ys, clip):
-    """Mean and covariance of (signed, or clipped) weights on the tensor grid (eqs. 50-51)."""
-    Mx, My = post.shape
-    m0 = np.zeros(Mx)
-    m1 = np.zeros(My)
-    for i in range(Mx):
-        for j in range(My):
-            v = post[i, j]
-            if clip and v < 0.0:
-                v = 0.0
-            m0[i] += v
-            m1[j] += v
-    total = m0.sum()
-    mx = (m0 @ xs) / total
-    my = (m1 @ ys) / total
-    d0 = xs - mx
-    d1 = ys - my
-    c01 = 0.0
-    for i in range(Mx):
-        acc = 0.0
-        for j in range(My):
-            v = post[i, j]
-            if clip and v < 0.0:
-                v = 0.0
-            acc += v * d1[j]
-        c01 += d0[i] * acc
-    c01 /= total
-    mean = np.array([mx, my])
-    cov = np.array([[(m0 @ (d0 * d0)) / total, c01], [c01, (m1 @ (d1 * d1)) / total]])
-    return mean, cov
-
-
-@_jit
-def _floor_moments(post, xs, ys, mean, cov, floor0, floor1):
-    """The checks of :meth:`ProjectionFilter._grid_moments` on the signed moments ``(mean,
-    cov)``: moments of the clip when they are not valid, variances floored."""
-    c00, c11, c01 = cov[0, 0], cov[1, 1], cov[0, 1]
-    ok = (math.isfinite(c00 + c11 + 2.0 * c01) and c00 > floor0 and c11 > floor1
-          and c00 * c11 - c01 * c01 > 0.0)
-    if not ok:
-        mean, cov = _moments2(post, xs, ys, True)
-    v0, v1 = cov[0, 0], cov[1, 1]
-    if v0 >= floor0 and v1 >= floor1:
-        return mean, cov
-    d0 = math.sqrt(max(v0, floor0) / max(v0, 1e-300))
-    d1 = math.sqrt(max(v1, floor1) / max(v1, 1e-300))
-    cov[0, 0] *= d0 * d0
-    cov[1, 1] *= d1 * d1
-    cov[0, 1] *= d0 * d1
-    cov[1, 0] *= d0 * d1
-    return mean, cov
-
-
-@_jit
-def grid_moments2(post, xs, ys, floor0, floor1):
-    """:meth:`ProjectionFilter._grid_moments` for two gridded states."""
-    mean, cov = _moments2(post, xs, ys, False)
-    return _floor_moments(post, xs, ys, mean, cov, floor0, floor1)
-
-
-@_jit
-def _moments2_marginals(post, m0, m1, xs, ys):
-    """:func:`_moments2` (signed weights) from the marginals ``m0``, ``m1`` already summed."""
-    M0, M1 = post.shape
-    total = m0.sum()
-    mx = (m0 @ xs) / total
-    my = (m1 @ ys) / total
-    d0 = xs - mx
-    d1 = ys - my
-    c01 = 0.0
-    for i in range(M0):
-        c01 += d0[i] * _row_dot(post, i, d1)
-    c01 /= total
-    mean = np.array([mx, my])
-    cov = np.array([[(m0 @ (d0 * d0)) / total, c01], [c01, (m1 @ (d1 * d1)) / total]])
-    return mean, cov
 
 
 @_jit

@@ -1,0 +1,96 @@
+"""Compiled moments of a two-dimensional grid density (mean, covariance, marginals), with
+the resolution floor of the variances: the point-mass and projection filters' kernels share them
+(reached through :mod:`uwcosim.filters.grid.projection_kernels`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from uwcosim.filters.grid.jit import _jit, _row_dot
+
+
+@_jit
+def moments2(post, xs, ys):
+    """Mean and covariance of the weights ``post`` on the grid ``xs x ys``."""
+    return _moments2(post, xs, ys, False)
+
+
+@_jit
+def _moments2(post, xs, ys, clip):
+    """Mean and covariance of (signed, or clipped) weights on the tensor grid (eqs. 50-51)."""
+    Mx, My = post.shape
+    m0 = np.zeros(Mx)
+    m1 = np.zeros(My)
+    for i in range(Mx):
+        for j in range(My):
+            v = post[i, j]
+            if clip and v < 0.0:
+                v = 0.0
+            m0[i] += v
+            m1[j] += v
+    total = m0.sum()
+    mx = (m0 @ xs) / total
+    my = (m1 @ ys) / total
+    d0 = xs - mx
+    d1 = ys - my
+    c01 = 0.0
+    for i in range(Mx):
+        acc = 0.0
+        for j in range(My):
+            v = post[i, j]
+            if clip and v < 0.0:
+                v = 0.0
+            acc += v * d1[j]
+        c01 += d0[i] * acc
+    c01 /= total
+    mean = np.array([mx, my])
+    cov = np.array([[(m0 @ (d0 * d0)) / total, c01], [c01, (m1 @ (d1 * d1)) / total]])
+    return mean, cov
+
+
+@_jit
+def _floor_moments(post, xs, ys, mean, cov, floor0, floor1):
+    """The checks of :meth:`ProjectionFilter._grid_moments` on the signed moments ``(mean,
+    cov)``: moments of the clip when they are not valid, variances floored."""
+    c00, c11, c01 = cov[0, 0], cov[1, 1], cov[0, 1]
+    ok = (math.isfinite(c00 + c11 + 2.0 * c01) and c00 > floor0 and c11 > floor1
+          and c00 * c11 - c01 * c01 > 0.0)
+    if not ok:
+        mean, cov = _moments2(post, xs, ys, True)
+    v0, v1 = cov[0, 0], cov[1, 1]
+    if v0 >= floor0 and v1 >= floor1:
+        return mean, cov
+    d0 = math.sqrt(max(v0, floor0) / max(v0, 1e-300))
+    d1 = math.sqrt(max(v1, floor1) / max(v1, 1e-300))
+    cov[0, 0] *= d0 * d0
+    cov[1, 1] *= d1 * d1
+    cov[0, 1] *= d0 * d1
+    cov[1, 0] *= d0 * d1
+    return mean, cov
+
+
+@_jit
+def grid_moments2(post, xs, ys, floor0, floor1):
+    """:meth:`ProjectionFilter._grid_moments` for two gridded states."""
+    mean, cov = _moments2(post, xs, ys, False)
+    return _floor_moments(post, xs, ys, mean, cov, floor0, floor1)
+
+
+@_jit
+def _moments2_marginals(post, m0, m1, xs, ys):
+    """:func:`_moments2` (signed weights) from the marginals ``m0``, ``m1`` already summed."""
+    M0, M1 = post.shape
+    total = m0.sum()
+    mx = (m0 @ xs) / total
+    my = (m1 @ ys) / total
+    d0 = xs - mx
+    d1 = ys - my
+    c01 = 0.0
+    for i in range(M0):
+        c01 += d0[i] * _row_dot(post, i, d1)
+    c01 /= total
+    mean = np.array([mx, my])
+    cov = np.array([[(m0 @ (d0 * d0)) / total, c01], [c01, (m1 @ (d1 * d1)) / total]])
+    return mean, cov

@@ -37,9 +37,12 @@ def position_velocity_indices(state_names: Sequence[str]) -> tuple[list[int], li
 
 
 def rmse(err: np.ndarray) -> np.ndarray:
-    """Per-component RMSE over time (axis 0), ignoring NaN steps: ``sqrt(mean_k e_k^2)``."""
-    err = np.asarray(err, dtype=float)
-    return np.sqrt(np.nanmean(err**2, axis=0))
+    """Per-component RMSE over time (axis 0), ignoring NaN steps: ``sqrt(mean_k e_k^2)``
+    (NaN for a component with no finite step, e.g. a filter that diverged at once)."""
+    sq = np.asarray(err, dtype=float) ** 2
+    n = np.sum(~np.isnan(sq), axis=0)
+    total = np.nansum(sq, axis=0)
+    return np.sqrt(np.divide(total, n, out=np.full(np.shape(total), np.nan), where=n > 0))
 
 
 def rmse_combined(err: np.ndarray) -> float:

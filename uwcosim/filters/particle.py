@@ -224,6 +224,59 @@ class ParticleCloud(FilterBase):
     def _moved(self) -> None:
         self._x_stale = self._P_stale = True
 
+    # update -------------------------------------------------------------------------------
+    def _predictive_nis(self, E: np.ndarray, C: np.ndarray, dof: int) -> None:
+        """NIS ``y' S^-1 y`` of the predicted measurement distribution (prior weights), from
+        the particles' residuals ``E_i = zhat_i - z`` and the covariance ``C`` of each one:
+        ``y = -sum w_i E_i``, ``S = sum w_i E_i E_i' - y y' + C`` (the sign of y does not
+        matter)."""
+        w = self._w
+        y = E @ w
+        S = (E * w) @ E.T
+        S -= y[:, None] * y
+        S += C
+        LS = cholesky(S)
+        if LS is None:
+            S, LS = repair_pd(S, self.diagnostics)
+        self.diagnostics["nis"] = quad_form(LS, y)
+        self.diagnostics["nis_dof"] = float(dof)
+
+    def _reweight(self, ll: np.ndarray) -> None:
+        """``log w_i += ll_i`` (log-likelihoods), normalize, and resample when the effective
+        sample size falls below ``ess_threshold * N``. The log weights were normalized and the
+        log-likelihoods are <= 0, so exp cannot overflow; the maximum is only subtracted when
+        the weights underflow (or are NaN, which it reports)."""
+        w, logw = self._w, self.logw
+        logw += ll
+        np.exp(logw, out=w)
+        total = float(w.sum())
+        if total > _TINY:
+            shift = math.log(total)
+        else:
+            top = float(logw.max())
+            if not math.isfinite(top):
+                raise FilterDivergence("particle weights are NaN or all zero")
+            np.subtract(logw, top, out=w)
+            np.exp(w, out=w)
+            total = float(w.sum())
+            shift = top + math.log(total)
+        w *= 1.0 / total
+        logw -= shift  # normalized log weights
+        ess = 1.0 / float(w @ w)  # ESS = 1 / sum w_i^2
+        self.diagnostics["ess"] = ess
+        # ess_threshold 1 resamples every step: ESS = N (equal weights) may round either way
+        resampled = self.ess_threshold >= 1.0 or ess < self.ess_threshold * self.n
+        if resampled:
+            self.particles = self.particles.take(self.resample(w, self.rng), axis=1)
+            w.fill(1.0 / self.n)
+            logw.fill(-math.log(self.n))
+            self._after_resample()
+        self.diagnostics["resampled"] = float(resampled)
+        self._moved()
+
+    def _after_resample(self) -> None:
+        """What a filter does right after resampling (nothing here)."""
+
     def _standard_normals(self, nw: int) -> np.ndarray:
         """``(nw, N)`` standard normals for one step, from a block drawn for several."""
         block, k = self._normals, self._next_normals
@@ -325,20 +378,11 @@ class ParticleFilter(ParticleCloud):
         if idx.size < Zt.shape[0]:
             z, Zt = z[idx], Zt[idx]
         R, lik, diagonal = self._likelihood_terms(idx)
-        w, logw = self._w, self.logw
         E = Zt - z[:, None]  # E_i = h(X_i) - z = -e_i
         # NIS y' S^-1 y of the predicted measurement distribution (prior weights): with
         # y = z - zhat = -sum w_i E_i, S = sum w_i (Z_i - zhat)(Z_i - zhat)' + R
         # = sum w_i E_i E_i' - y y' + R (the sign of y does not matter)
-        y = E @ w
-        S = (E * w) @ E.T
-        S -= y[:, None] * y
-        S += R
-        LS = cholesky(S)
-        if LS is None:
-            S, LS = repair_pd(S, self.diagnostics)
-        self.diagnostics["nis"] = quad_form(LS, y)
-        self.diagnostics["nis_dof"] = float(idx.size)
+        self._predictive_nis(E, R, idx.size)
         # log-likelihood -1/2 e' R^-1 e of every particle
         if diagonal:
             E *= E
@@ -346,36 +390,11 @@ class ParticleFilter(ParticleCloud):
         else:
             Wh = solve_triangular(lik, E, lower=True, check_finite=False)
             ll = -0.5 * np.einsum("ij,ij->j", Wh, Wh)
-        # log w_i += log p(z | X_i), then normalize. The log weights were normalized and the
-        # log-likelihoods are <= 0, so exp cannot overflow; the maximum is only subtracted
-        # when the weights underflow (or are NaN, which it reports).
-        logw += ll
-        np.exp(logw, out=w)
-        total = float(w.sum())
-        if total > _TINY:
-            shift = math.log(total)
-        else:
-            top = float(logw.max())
-            if not math.isfinite(top):
-                raise FilterDivergence("pf weights are NaN or all zero")
-            np.subtract(logw, top, out=w)
-            np.exp(w, out=w)
-            total = float(w.sum())
-            shift = top + math.log(total)
-        w *= 1.0 / total
-        logw -= shift  # normalized log weights
-        ess = 1.0 / float(w @ w)  # ESS = 1 / sum w_i^2
-        self.diagnostics["ess"] = ess
-        # ess_threshold 1 resamples every step: ESS = N (equal weights) may round either way
-        resampled = self.ess_threshold >= 1.0 or ess < self.ess_threshold * self.n
-        if resampled:
-            self.particles = self.particles.take(self.resample(w, self.rng), axis=1)
-            w.fill(1.0 / self.n)
-            logw.fill(-math.log(self.n))
-            if self.roughening > 0.0:
-                self._roughen()
-        self.diagnostics["resampled"] = float(resampled)
-        self._moved()
+        self._reweight(ll)
+
+    def _after_resample(self) -> None:
+        if self.roughening > 0.0:
+            self._roughen()
 
     def _roughen(self) -> None:
         Xp = self.particles

@@ -50,17 +50,15 @@ from scipy.linalg import lapack
 from uwcosim.errors import FilterDivergence
 from uwcosim.filters.base import register
 from uwcosim.filters.numerics import (
-    cholesky,
     linearize,
     psd_factor,
     repair_pd,
     symmetrize,
 )
-from uwcosim.filters.particle import ParticleCloud, quad_form
+from uwcosim.filters.particle import ParticleCloud
 
 _trtri = lapack.dtrtri
 _potrf = lapack.dpotrf
-_TINY = 1e-250
 
 
 def block_slice(idx: list[int]):
@@ -279,17 +277,7 @@ class RaoBlackwellizedPF(ParticleCloud):
                 raise FilterDivergence("rbpf: measurement update covariance is not definite")
         L11 = L[:m, :m]
         C = M[:m, :m]
-        w, logw = self._w, self.logw
-        # NIS of the predicted measurement (mixture with prior weights)
-        y = E @ w
-        S = (E * w) @ E.T
-        S -= y[:, None] * y
-        S += C
-        LS = cholesky(S)
-        if LS is None:
-            S, LS = repair_pd(S, self.diagnostics)
-        self.diagnostics["nis"] = quad_form(LS, y)
-        self.diagnostics["nis_dof"] = float(m)
+        self._predictive_nis(E, C, m)  # mixture with the prior weights
         Li, info = _trtri(L11, lower=1)
         if info != 0:  # pragma: no cover - L11 is a Cholesky factor
             raise FilterDivergence("rbpf: singular measurement covariance")
@@ -299,26 +287,4 @@ class RaoBlackwellizedPF(ParticleCloud):
             L22 = L[m:, m:]
             self.Pk = L22 @ L22.T
         W *= W
-        logw -= self._half[:m] @ W  # log w_i += log N(z; zhat_i, C) = -1/2 |W_i|^2 + const
-        np.exp(logw, out=w)
-        total = float(w.sum())
-        if total > _TINY:
-            shift = math.log(total)
-        else:
-            top = float(logw.max())
-            if not math.isfinite(top):
-                raise FilterDivergence("rbpf weights are NaN or all zero")
-            np.exp(logw - top, out=w)
-            total = float(w.sum())
-            shift = top + math.log(total)
-        w *= 1.0 / total
-        logw -= shift
-        ess = 1.0 / float(w @ w)
-        self.diagnostics["ess"] = ess
-        resampled = self.ess_threshold >= 1.0 or ess < self.ess_threshold * self.n
-        if resampled:
-            self.particles = self.particles.take(self.resample(w, self.rng), axis=1)
-            w.fill(1.0 / self.n)
-            logw.fill(-math.log(self.n))
-        self.diagnostics["resampled"] = float(resampled)
-        self._moved()
+        self._reweight(-(self._half[:m] @ W))  # log w_i += log N(z; zhat_i, C) + const

@@ -130,17 +130,22 @@ class CUKFSettings(FilterSettings):
     measurements: Measurements = Field(None, description=_MEAS)
 
 
-@settings_for("pf")
-class ParticleSettings(FilterSettings):
+class CloudSettings(FilterSettings):
+    """What the particle filters (``pf``, ``rbpf``, ``rpf``) share."""
+
     n_particles: StrictInt = Field(1000, ge=2, description="number of particles")
     resampling: Literal["systematic", "stratified", "residual", "multinomial"] = Field(
         "systematic", description="resampling scheme")
     ess_threshold: StrictFloat = Field(0.5, ge=0, le=1, description="resample when the "
                                        "effective sample size falls below this fraction of N")
+    needs_rng: ClassVar[bool] = True
+
+
+@settings_for("pf")
+class ParticleSettings(CloudSettings):
     roughening: StrictFloat = Field(0.0, ge=0, description="Gordon et al.'s K: jitter after "
                                     "resampling (0 = off)")
     measurements: Measurements = Field(None, description=_MEAS)
-    needs_rng: ClassVar[bool] = True
 
 
 @settings_for("vbakf")
@@ -168,31 +173,19 @@ class QIVBFSettings(VariationalSettings):
 
 
 @settings_for("rbpf")
-class RBPFSettings(FilterSettings):
-    n_particles: StrictInt = Field(1000, ge=2, description="number of particles")
-    resampling: Literal["systematic", "stratified", "residual", "multinomial"] = Field(
-        "systematic", description="resampling scheme")
-    ess_threshold: StrictFloat = Field(0.5, ge=0, le=1, description="resample when the "
-                                       "effective sample size falls below this fraction of N")
+class RBPFSettings(CloudSettings):
     linear_states: list[StrictStr] | None = Field(
         None, description="the Kalman (marginalized) states (default: from the model)")
     measurements: Measurements = Field(None, description=_MEAS)
-    needs_rng: ClassVar[bool] = True
 
 
 @settings_for("rpf")
-class RegularizedSettings(FilterSettings):
-    n_particles: StrictInt = Field(1000, ge=2, description="number of particles")
-    resampling: Literal["systematic", "stratified", "residual", "multinomial"] = Field(
-        "systematic", description="resampling scheme")
-    ess_threshold: StrictFloat = Field(0.5, ge=0, le=1, description="resample when the "
-                                       "effective sample size falls below this fraction of N")
+class RegularizedSettings(CloudSettings):
     bandwidth_scale: StrictFloat = Field(1.0, ge=0, description="times the optimal Gaussian "
                                          "kernel bandwidth")
     shrink: StrictBool = Field(False, description="Liu-West shrinkage (keeps the cloud's mean "
                                "and covariance)")
     measurements: Measurements = Field(None, description=_MEAS)
-    needs_rng: ClassVar[bool] = True
 
 
 @settings_for("point_mass")

@@ -163,6 +163,18 @@ class ConditionalKalman:
         diagnostics["nis_dof"] = float(len(rows))
 
 
+def begin_update(est, z, mask):
+    """The first part of a grid filter's ``update``: fresh diagnostics (unless a prediction
+    just wrote them), the rows split into Kalman and grid rows, and the Kalman block updated
+    with its rows. Returns ``(z, rows_k, rows_g)``."""
+    if est._after_update:
+        est.diagnostics = {}
+    est._after_update = True
+    z, rows_k, rows_g = est.part.split_rows(z, mask, est.model.nz)
+    est.kalman.update(est.x, z, rows_k, est.diagnostics)
+    return z, rows_k, rows_g
+
+
 def assemble_estimate(est) -> tuple[np.ndarray, np.ndarray]:
     """``(x, P)`` of a partitioned filter (grid or projection) from its gridded block
     (``_mean``, ``_cov``) and its conditional Kalman block; FilterDivergence if non-finite."""

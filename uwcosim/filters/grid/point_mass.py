@@ -33,7 +33,12 @@ from scipy import ndimage, sparse
 from uwcosim.errors import FilterDivergence
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.grid import projection_kernels as pk
-from uwcosim.filters.grid.conditional import ConditionalKalman, assemble_estimate, block_index
+from uwcosim.filters.grid.conditional import (
+    ConditionalKalman,
+    assemble_estimate,
+    begin_update,
+    block_index,
+)
 from uwcosim.filters.grid.likelihood import GridLikelihood
 from uwcosim.filters.grid.partition import Partition, symbolic
 from uwcosim.filters.grid.spectral import axes_moments
@@ -412,11 +417,7 @@ class PointMassFilter(Estimator):
         self.values = out.reshape([a.size for a in new]) / self.cell
 
     def update(self, z, mask=None) -> None:
-        if self._after_update:
-            self.diagnostics = {}
-        self._after_update = True
-        z, rows_k, rows_g = self.part.split_rows(z, mask, self.model.nz)
-        self.kalman.update(self.x, z, rows_k, self.diagnostics)
+        z, rows_k, rows_g = begin_update(self, z, mask)
         if rows_g and self.fast and len(rows_g) == 1 and rows_g[0] in self.likelihood.terrain_rows:
             r = rows_g[0]
             tg = self.likelihood.terrain_rows[r]

@@ -75,7 +75,12 @@ from uwcosim.errors import FilterDivergence
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.grid import projection_kernels as pk
 from uwcosim.filters.grid import spectral as po
-from uwcosim.filters.grid.conditional import ConditionalKalman, assemble_estimate, block_index
+from uwcosim.filters.grid.conditional import (
+    ConditionalKalman,
+    assemble_estimate,
+    begin_update,
+    block_index,
+)
 from uwcosim.filters.grid.likelihood import GridLikelihood
 from uwcosim.filters.grid.partition import Partition, symbolic
 from uwcosim.filters.grid.projection_bayes import BayesProduct
@@ -277,11 +282,7 @@ class ProjectionFilter(BayesProduct, Estimator):
         self._set_estimate()
 
     def update(self, z, mask=None) -> None:
-        if self._after_update:
-            self.diagnostics = {}
-        self._after_update = True
-        z, rows_k, rows_g = self.part.split_rows(z, mask, self.model.nz)
-        self.kalman.update(self.x, z, rows_k, self.diagnostics)
+        z, rows_k, rows_g = begin_update(self, z, mask)
         diag = self.diagnostics
         prior, prior_basis = self.m, self.basis
         post, mean, cov, ok = self._bayes(self.basis, z, rows_g, record=True)

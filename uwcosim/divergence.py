@@ -15,13 +15,22 @@ An estimate ``(x, P)`` is diverged when
   side (so only estimates far off the map are flagged; no bound without a map).
 
 The diverged estimator is stopped and flagged; the others go on.
+
+:meth:`DivergenceCheck.assess` checks all estimators of a step at once, with their NEES
+(:func:`uwcosim.evaluation.metrics.nees`, the same bits): a handful of batched numpy calls per
+step instead of about fifteen per estimator, which were a fifth of a Table 1 run. Only an
+estimate that fails a check goes through the per-estimate path
+(:meth:`DivergenceCheck.__call__`), which words the reason.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from uwcosim.evaluation.metrics import nees as metrics_nees
 
 SYM_RTOL = 1e-6
 PD_RTOL = 1e-9
@@ -62,6 +71,48 @@ class DivergenceCheck:
     pos: tuple[int, ...] = ()
     bound: tuple[float, float, float, float] | None = None
 
+    def assess(self, X: np.ndarray, Ps: np.ndarray, E: np.ndarray,
+               nis: np.ndarray) -> tuple[list[str], np.ndarray]:
+        """Why each of ``k`` estimates is diverged (empty string if not) and its NEES.
+
+        ``X`` ``(k, n)`` estimates, ``Ps`` ``(k, n, n)`` covariances, ``E`` ``(k, n)`` errors
+        (truth minus estimate), ``nis`` ``(k,)`` (NaN when none). The NEES is
+        ``e' P^-1 e`` as :func:`uwcosim.evaluation.metrics.nees` computes it for one step
+        (bit for bit), NaN for a diverged estimate.
+        """
+        k = X.shape[0]
+        nees = np.full(k, np.nan)
+        if k == 0:
+            return [], nees
+        fine = math.isfinite(float(X.sum()) + float(Ps.sum()))
+        if fine:
+            scale = np.abs(Ps).max(axis=(1, 2))
+            asym = np.abs(Ps - Ps.transpose(0, 2, 1)).max(axis=(1, 2))
+            fine = bool(np.all(scale > 0.0) and np.all(asym <= SYM_RTOL * scale)
+                        and not np.any(nis < 0))
+        if fine and self.bound is not None and len(self.pos) >= 2:
+            xmin, xmax, ymin, ymax = self.bound
+            px, py = X[:, self.pos[0]], X[:, self.pos[1]]
+            fine = bool(np.all((px >= xmin) & (px <= xmax) & (py >= ymin) & (py <= ymax)))
+        if fine:
+            try:
+                np.linalg.cholesky(0.5 * (Ps + Ps.transpose(0, 2, 1)))  # all positive definite
+                y = np.linalg.solve(Ps, E[:, :, None])[:, :, 0]
+            except np.linalg.LinAlgError:
+                fine = False
+        if fine:
+            # one dot product per estimate: the bits of ``e @ solve(P, e)`` (metrics.nees)
+            nees[:] = [E[i] @ y[i] for i in range(k)]
+            if not np.any(nees < 0):
+                return [""] * k, nees
+        whys = []
+        for i in range(k):  # some estimate fails a check: one at a time, with the reason
+            n_i = float(metrics_nees(E[i][None], Ps[i][None])[0])
+            why = self(X[i], Ps[i], float(nis[i]), n_i)
+            whys.append(why)
+            nees[i] = np.nan if why else n_i
+        return whys, nees
+
     def __call__(self, x: np.ndarray, P: np.ndarray, nis: float, nees: float) -> str:
         """Why the estimate is diverged, or an empty string."""
         if not np.all(np.isfinite(x)):
@@ -80,3 +131,4 @@ class DivergenceCheck:
                 return (f"position estimate ({px:.4g}, {py:.4g}) m outside the bound "
                         f"[{xmin:g}, {xmax:g}] x [{ymin:g}, {ymax:g}]")
         return ""
+

@@ -22,10 +22,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from uwcosim.errors import FilterDivergence, ScenarioError
-from uwcosim.evaluation.metrics import nees
 from uwcosim.filters import Estimator
 from uwcosim.filters.grid.jit import interrupted
-from uwcosim.filters.numerics import check_finite
 from uwcosim.master.sources import stream
 
 if TYPE_CHECKING:
@@ -102,6 +100,7 @@ class EstimatorBank:
         meas = master.measurement()
         z, rec = meas.z, meas.received
         t = master.t
+        stepped = []
         for tr in self.tracks:
             if tr.diverged_at is not None:
                 continue
@@ -113,25 +112,29 @@ class EstimatorBank:
                 z_in, mask = tr.policy(t, z, rec & tr.use)
                 mask = np.asarray(mask, dtype=bool) & tr.use
                 est.update(z_in if mask.any() else None, mask)
-                check_finite("estimate", est.x, est.P)
             except FilterDivergence as exc:
                 tr.diverged_at = t
                 tr.error = str(exc)
+                tr.nees = float("nan")
             except SystemError as exc:  # Ctrl-C while a compiled (Numba) kernel returned
                 if interrupted(exc):
                     raise KeyboardInterrupt from None
                 raise
             tr.step_times.append(time.perf_counter() - a)
             if tr.diverged_at is None:
-                tr.nees = self.nees(est, master)
-                why = self.check(est.x, est.P, est.diagnostics.get("nis", np.nan), tr.nees)
-                if why:
-                    tr.diverged_at, tr.error = t, why
-            if tr.diverged_at is not None:
-                tr.nees = float("nan")
+                stepped.append(tr)
+        if stepped:
+            self._assess(stepped, master, t)
 
-    def nees(self, est: Estimator, master: Master) -> float:
-        """NEES of ``est`` against the truth on the bus (:func:`uwcosim.evaluation.metrics.nees`:
-        NaN when ``P`` is not positive definite)."""
-        e = master.bus[self.truth_slots] - est.x
-        return float(nees(e[None, :], est.P[None])[0])
+    def _assess(self, tracks: list[Track], master: Master, t: float) -> None:
+        """NEES and divergence checks of this step's estimates, all at once
+        (:meth:`uwcosim.divergence.DivergenceCheck.assess`)."""
+        X = np.array([tr.estimator.x for tr in tracks], dtype=float)
+        Ps = np.array([tr.estimator.P for tr in tracks], dtype=float)
+        nis = np.array([tr.estimator.diagnostics.get("nis", np.nan) for tr in tracks],
+                       dtype=float)
+        whys, nees = self.check.assess(X, Ps, master.bus[self.truth_slots] - X, nis)
+        for tr, why, v in zip(tracks, whys, nees.tolist(), strict=True):
+            tr.nees = v
+            if why:
+                tr.diverged_at, tr.error = t, why

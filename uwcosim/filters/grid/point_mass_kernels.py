@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from uwcosim.filters.grid.grid_moments import _moments2, _moments2_marginals
-from uwcosim.filters.grid.jit import _jit, _jit_fast
+from uwcosim.filters.grid.jit import _jit, _jit_fast, _max2, _row_sum, _sum2
 from uwcosim.filters.grid.projection_kernels import TWO_PI, _sym, terrain_depth
 
 # ---------------------------------------------------------------------------------------------
@@ -134,7 +134,7 @@ def pm_finish(X, coords0, coords1, n0, n1, cell):
     """Spline at the shifted points (clipped at 0) and normalization: ``(values, mass)``;
     ``values`` are divided by the mass when it is finite and positive."""
     out = spline_shift_2d(X, coords0, coords1, n0, n1)
-    mass = out.sum() * cell
+    mass = _sum2(out, False) * cell
     if math.isfinite(mass) and mass > 0.0:
         out /= mass
     return out, mass
@@ -146,13 +146,11 @@ def terrain_exponent(xs, ys, C, tpar, ipar, z, var):
     (map as in :func:`bayes_terms`)."""
     h = terrain_depth(xs, ys, C, tpar[0], tpar[1], tpar[2], tpar[3], ipar[0], ipar[1],
                       ipar[2])
-    tmax = -np.inf
     for i in range(h.shape[0]):
         for j in range(h.shape[1]):
             e = h[i, j] - z
-            t = -0.5 * (e * e) / var
-            h[i, j] = t
-            tmax = max(tmax, t)
+            h[i, j] = -0.5 * (e * e) / var
+    tmax = _max2(h)
     h -= tmax
     return h, tmax
 
@@ -168,13 +166,11 @@ def grid_product_moments(values, lik, cell, xs, ys):
     m0 = np.zeros(Mx)
     m1 = np.zeros(My)
     for i in range(Mx):
-        acc = 0.0
         for j in range(My):
             p = values[i, j] * lik[i, j]
             post[i, j] = p
-            acc += p
             m1[j] += p
-        m0[i] = acc
+        m0[i] = _row_sum(post, i, False)
     Z = m0.sum() * cell
     if math.isfinite(Z) and Z > 0.0:
         post /= Z

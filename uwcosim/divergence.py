@@ -85,15 +85,15 @@ class DivergenceCheck:
         if k == 0:
             return [], nees
         fine = math.isfinite(float(X.sum()) + float(Ps.sum()))
-        if fine:
+        if fine:  # (numpy reductions on a few numbers: scalar comparisons are cheaper)
             scale = np.abs(Ps).max(axis=(1, 2))
             asym = np.abs(Ps - Ps.transpose(0, 2, 1)).max(axis=(1, 2))
-            fine = bool(np.all(scale > 0.0) and np.all(asym <= SYM_RTOL * scale)
-                        and not np.any(nis < 0))
+            fine = (float(scale.min()) > 0.0 and float((asym - SYM_RTOL * scale).max()) <= 0.0
+                    and not (nis < 0).any())
         if fine and self.bound is not None and len(self.pos) >= 2:
             xmin, xmax, ymin, ymax = self.bound
-            px, py = X[:, self.pos[0]], X[:, self.pos[1]]
-            fine = bool(np.all((px >= xmin) & (px <= xmax) & (py >= ymin) & (py <= ymax)))
+            px, py = X[:, self.pos[0]].tolist(), X[:, self.pos[1]].tolist()
+            fine = xmin <= min(px) and max(px) <= xmax and ymin <= min(py) and max(py) <= ymax
         if fine:
             try:
                 np.linalg.cholesky(0.5 * (Ps + Ps.transpose(0, 2, 1)))  # all positive definite

@@ -36,7 +36,8 @@ def controls(k: int) -> np.ndarray:
 
 
 def time_filter(name, settings, model, zs, x0, us) -> np.ndarray:
-    est = ESTIMATORS.get(name).from_settings(model, x0, np.diag(STD0**2), settings)
+    est = ESTIMATORS.get(name).from_settings(model, x0, np.diag(STD0**2), settings,
+                                             rng=np.random.default_rng(1))  # same stream
     times = np.empty(len(zs))
     for k, z in enumerate(zs):
         t0 = time.perf_counter()
@@ -60,10 +61,10 @@ def main() -> None:
     us = [controls(k) for k in range(args.steps)]
     n = args.particles
     filters = {
-        f"pf-{n}": ("pf", {"n_particles": n, "seed": 1}),
-        f"rbpf-{n}": ("rbpf", {"n_particles": n, "seed": 1}),
-        f"rpf-{n}": ("rpf", {"n_particles": n, "seed": 1}),
-        f"rpf-{n} shrink": ("rpf", {"n_particles": n, "seed": 1, "shrink": True}),
+        f"pf-{n}": ("pf", {"n_particles": n}),
+        f"rbpf-{n}": ("rbpf", {"n_particles": n}),
+        f"rpf-{n}": ("rpf", {"n_particles": n}),
+        f"rpf-{n} shrink": ("rpf", {"n_particles": n, "shrink": True}),
     }
     best = {k: [np.inf, np.inf] for k in filters}
     for _ in range(args.repeats):

@@ -326,7 +326,7 @@ class RaoBlackwellizedPF(ParticleCloud):
             q = M0.shape[0]
             kp = np.arange(m, dtype=np.intp)[kpos]
             b = (np.ascontiguousarray(M0[:m, :m]), np.ascontiguousarray(Hk), kp, q - m,
-                 np.zeros((5, q, q)), np.empty((2 * m + 1, self.n)))
+                 np.zeros((6, q, q)), np.empty((2 * m + 1, self.n)))
             self._kernel_cache[key] = b
         R, Hk, kp, nkb, small, work = b
         code, nis = rk.update_step(Zt, z, idx, R, Hk, kp, self.Pk, nkb, self._w,

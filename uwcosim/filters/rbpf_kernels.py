@@ -126,7 +126,7 @@ def update_step(Zt, z, idx, R, Hk, kpos, Pk, nkb, w, particles, sk, small, work,
     ``idx`` of the predicted measurements ``Zt`` (``(nz, N)``) and of ``z``. ``R`` is their
     measurement covariance, ``Hk`` the rows ``kpos`` (positions in ``idx``) that measure the
     linear states ``sk`` (``nkb`` of them; 0 when no Kalman row is available). ``small`` holds
-    five ``q x q`` scratch matrices (``q = m + nkb``), ``work`` ``2 m + 1`` scratch rows of
+    six ``q x q`` scratch matrices (``q = m + nkb``), ``work`` ``2 m + 1`` scratch rows of
     ``N``. Writes the log-likelihoods into ``ll``, corrects the particles and writes the
     updated covariance into ``Pk``. Returns ``(code, nis)``: code 0 done, 1 ``M`` and 2 the
     NIS covariance not positive definite (nothing written to the particles or ``Pk``)."""
@@ -167,7 +167,7 @@ def update_step(Zt, z, idx, R, Hk, kpos, Pk, nkb, w, particles, sk, small, work,
         for i in range(n):
             E[a, i] = Zt[ra, i] - za  # E_i = zhat_i - z
     # predictive NIS: y = sum w_i E_i, S = sum w_i E_i E_i' - y y' + C (sums in fixed order)
-    y = LS[q - 1]  # a scratch row of length >= m (LS[:m, :m] is filled below)
+    y = small[5, 0]
     for a in range(m):
         y[a] = _row_dot(E, a, w)
         for i in range(n):

@@ -56,10 +56,11 @@ def steps(case, filters, n):
         yield k
 
 
-@pytest.mark.parametrize("linear_states", [None, ["vx"]])
+@pytest.mark.parametrize("linear_states", [None, ["vx"], []])
 def test_compiled_and_numpy_rbpf_agree(case, linear_states):
     """Velocities marginalized (the default split) and only ``vx`` (states reordered to
-    ``(x, y, vy | vx)``, the ``vy`` row measured by particles): every step's estimate, Kalman
+    ``(x, y, vy | vx)``, the ``vy`` row measured by particles) and none (a plain PF with the
+    RBPF's proposal): every step's estimate, Kalman
     covariance, particles, weights and diagnostics agree to round-off (measured: 2e-10
     relative at most over 150 steps)."""
     fast, ref = pair(case, linear_states)

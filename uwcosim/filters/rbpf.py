@@ -194,7 +194,8 @@ class RaoBlackwellizedPF(ParticleCloud):
         self._perm_idx = np.asarray(perm, dtype=np.intp)
         self._sk_idx = np.asarray(ik, dtype=np.intp)
         self._Lbuf = np.zeros((m.nx, m.nx))
-        self._ll = np.empty(n)
+        self._ll = np.empty(n)  # log-likelihoods
+        self._row = np.empty(n)  # scratch row of the prediction kernel
         self._kernel_cache: dict[bytes, tuple] = {}
 
     def _conditional_cov(self, P: np.ndarray) -> np.ndarray:
@@ -216,7 +217,7 @@ class RaoBlackwellizedPF(ParticleCloud):
         e = self._standard_normals(n_p)
         if self.fast:
             done, finite = rk.predict_step(F, Q, self.Pk, self._perm_idx, n_p, e, X,
-                                           self._Lbuf, self.Pk, self._ll)
+                                           self._Lbuf, self.Pk, self._row)
             if done:
                 if not finite:
                     raise FilterDivergence("rbpf prediction contains NaN or inf")

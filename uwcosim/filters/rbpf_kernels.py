@@ -2,20 +2,23 @@
 
 One call per half step does what the numpy code of :class:`~uwcosim.filters.rbpf.
 RaoBlackwellizedPF` does in some thirty numpy calls on 4x4 matrices and 1000-particle rows
-(about 25 us of call overhead per step, ``benchmarks/bench_rbpf.py``):
+(the step of ``benchmarks/bench_rbpf.py``: 78-81 us median against 112 with the numpy code;
+``docs/benchmarks.md``):
 
-* :func:`predict_step`: ``S = F_kk blockdiag(0, P) F_kk' + Q`` in ``(p, k)`` order, its
+* :func:`predict_step`: ``S = F blockdiag(0, P) F' + Q`` in ``(p, k)`` order, its
   Cholesky factor ``L``, ``P' = L_k L_k'`` and the particles' noise ``X[perm] += L[:, :n_p] e``;
 * :func:`update_step`: ``M = [[C, H_k P], [P H_k', P]]`` and its factor, the predictive NIS
   moments of the residuals ``E_i = zhat_i - z`` (prior weights), their whitening by ``L_11``,
   every particle's Kalman correction ``L_21 L_11^-1 E_i`` and the log-likelihoods.
 
 Same maths as the numpy code (see that module's docstrings), different rounding: the small
-products are loops and the sums over particles one accumulator per quantity in particle order
-(IEEE, no fast-math, registered with :func:`~uwcosim.filters.grid.jit._jit` like the grid
-filters' kernels: the same bits whether compiled afresh or loaded from the cache). A matrix
-that is not positive definite is reported (return code) before anything is written to the
-particles; the filter then runs its numpy code, with its repairs, for that step.
+products are loops, the per-particle work runs row by row over the particles (vectorizable)
+and the sums over particles are :func:`~uwcosim.filters.grid.jit._row_dot`'s fixed-order
+partial sums (IEEE, no fast-math, registered with :func:`~uwcosim.filters.grid.jit._jit`
+like the grid filters' kernels: the same bits whether compiled afresh or loaded from the
+cache). A matrix that is not positive definite is reported (return code) before anything
+is written to the particles; the filter then runs its numpy code, with its repairs, for that
+step.
 ``tests/test_rbpf_kernels.py`` checks both paths against each other.
 """
 

@@ -3,11 +3,11 @@
 With fast-math, LLVM's result depended on how a kernel was compiled: a kernel compiled afresh
 and the same kernel loaded from the on-disk cache differed in the last bits, so the same
 scenario and seed gave different logs on a fresh machine. The kernels are IEEE (their sums in
-a fixed order, see ``projection_kernels._sum2``); this test runs a short PFM-PSI and
-point-mass sequence in two processes sharing an initially empty ``NUMBA_CACHE_DIR``: the first
-compiles every kernel (cache misses only), the second loads them (cache hits only), and the
-estimates must be identical bytes. (Checked to fail with the fast-math kernels of commit
-a3a152a: the estimates of the two processes differed.)
+a fixed order, see ``projection_kernels._sum2``); this test runs a short PFM-PSI, point-mass
+and marginalized PF (``rbpf_kernels``) sequence in two processes sharing an initially empty
+``NUMBA_CACHE_DIR``: the first compiles every kernel (cache misses only), the second loads
+them (cache hits only), and the estimates must be identical bytes. (Checked to fail with the
+fast-math kernels of commit a3a152a: the estimates of the two processes differed.)
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ import sys
 import numpy as np
 import uwcosim.filters  # noqa: F401  (registers the estimators)
 from uwcosim.filters.grid import projection_kernels as pk
+from uwcosim.filters import rbpf_kernels as rk
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.models.terrain import synthetic_bathymetry
 from uwcosim.models.trajectory import simulate, wandering_heading
@@ -42,7 +43,7 @@ P0 = np.diag([30.0**2, 30.0**2, 0.05**2, 0.05**2])
 xe0 = x0 + rng.standard_normal(4) * np.sqrt(np.diag(P0))
 out = []
 for name, kw in (("pfm_psi", {"K": 10}), ("pfm_psi", {"K": 10, "k_sigma": 10.0}),
-                 ("point_mass", {})):
+                 ("point_mass", {}), ("rbpf", {"n_particles": 500})):
     est = ESTIMATORS.get(name).from_settings(model, xe0, P0, kw,
                                              rng=np.random.default_rng(0))
     assert est.fast, name
@@ -53,8 +54,8 @@ for name, kw in (("pfm_psi", {"K": 10}), ("pfm_psi", {"K": 10, "k_sigma": 10.0})
 with open(sys.argv[1], "wb") as f:
     f.write(b"".join(out))
 hits = misses = 0
-for name in pk.__all__:
-    stats = getattr(getattr(pk, name), "stats", None)
+for mod, name in [(pk, n) for n in pk.__all__] + [(rk, n) for n in rk.__all__]:
+    stats = getattr(getattr(mod, name), "stats", None)
     if stats is not None:
         hits += sum(stats.cache_hits.values())
         misses += sum(stats.cache_misses.values())
@@ -80,5 +81,5 @@ def test_fresh_compile_and_cache_load_give_identical_estimates(tmp_path):
     assert any(cache.rglob("*.nbi")), "the first run wrote no cache"
     loaded, hits1, misses1 = _run(cache, tmp_path / "loaded.bin")
     assert hits1 > 0 and misses1 == 0, (hits1, misses1)  # every kernel from the cache
-    assert len(fresh) == 3 * 25 * (4 + 16) * 8
+    assert len(fresh) == 4 * 25 * (4 + 16) * 8
     assert fresh == loaded

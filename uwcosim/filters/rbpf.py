@@ -38,6 +38,12 @@ without terrain) the filter is a mixture of Kalman filters whose particles only 
 position.
 
 Resampling schemes and the block-drawn normals come from :mod:`uwcosim.filters.particle`.
+
+Speed: with Numba (``UWCOSIM_NUMBA`` not ``0``) the small-matrix algebra of each half step and
+the per-particle work that goes with it are one compiled call each
+(:mod:`uwcosim.filters.rbpf_kernels`, the same maths with a different rounding); a matrix
+that is not positive definite sends that step to the numpy code and its repairs. ``fast``
+says which path runs.
 """
 
 from __future__ import annotations
@@ -48,6 +54,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from uwcosim.errors import FilterDivergence
+from uwcosim.filters import rbpf_kernels as rk
 from uwcosim.filters.base import register
 from uwcosim.filters.numerics import (
     linearize,
@@ -171,6 +178,7 @@ class RaoBlackwellizedPF(ParticleCloud):
             self.Pk = symmetrize(P[np.ix_(ik, ik)] - G @ Pkp.T)
         else:
             self.Pk = np.zeros((0, 0))
+        self.Pk = np.ascontiguousarray(self.Pk)  # the kernels update it in place
         self._x_stale = self._P_stale = True
         self._sp, self._sk = block_slice(ip), block_slice(ik)
         self._kk = block_pair(ik, ik)
@@ -182,6 +190,13 @@ class RaoBlackwellizedPF(ParticleCloud):
         self._block_cache: dict[bytes, tuple] = {}
         self._D = np.empty_like(self.particles)  # centred particles, for P
         self._half = np.full(m.nz, 0.5)
+        self.fast = bool(rk.ENABLED)  # compiled kernels (else the numpy code below)
+        self._perm_idx = np.asarray(perm, dtype=np.intp)
+        self._sk_idx = np.asarray(ik, dtype=np.intp)
+        self._Lbuf = np.zeros((m.nx, m.nx))
+        self._ll = np.empty(n)  # log-likelihoods
+        self._row = np.empty(n)  # scratch row of the prediction kernel
+        self._kernel_cache: dict[bytes, tuple] = {}
 
     def _conditional_cov(self, P: np.ndarray) -> np.ndarray:
         """The particles' covariance plus the common Kalman covariance of the linear states."""
@@ -198,6 +213,17 @@ class RaoBlackwellizedPF(ParticleCloud):
         self._begin_predict()
         F, Q = linearize(self.model, self.x, u, dt)
         X = np.asarray(self.model.f_batch(self.particles.T, u, dt)).T  # means (a new array)
+        n_p = self._nkp
+        e = self._standard_normals(n_p)
+        if self.fast:
+            done, finite = rk.predict_step(F, Q, self.Pk, self._perm_idx, n_p, e, X,
+                                           self._Lbuf, self.Pk, self._row)
+            if done:
+                if not finite:
+                    raise FilterDivergence("rbpf prediction contains NaN or inf")
+                self.particles = X
+                self._moved()
+                return
         Pt = self._Paug  # blockdiag(0, P) in (p, k) order
         Pt[self._nkp:, self._nkp:] = self.Pk
         Fp = F if self._perm is None else F[np.ix_(self._perm, self._perm)]
@@ -205,18 +231,17 @@ class RaoBlackwellizedPF(ParticleCloud):
         S = Fp @ Pt @ Fp.T
         S += Qp
         L, info = _potrf(S, lower=1, clean=1)
-        n_p = self._nkp
         if info == 0:
-            noise = L[:, :n_p] @ self._standard_normals(n_p)
+            noise = L[:, :n_p] @ e
             Lk = L[n_p:, n_p:]
-            self.Pk = Lk @ Lk.T
+            self.Pk = np.ascontiguousarray(Lk @ Lk.T)
         else:  # singular: pseudo-inverse conditioning
             S = symmetrize(S)
             Spp, Skp = S[:n_p, :n_p], S[n_p:, :n_p]
-            delta = psd_factor(Spp) @ self._standard_normals(n_p)
+            delta = psd_factor(Spp) @ e
             G = Skp @ np.linalg.pinv(Spp)  # S_kp S_pp^-1
             noise = np.vstack((delta, G @ delta))
-            self.Pk = symmetrize(S[n_p:, n_p:] - G @ Skp.T)
+            self.Pk = np.ascontiguousarray(symmetrize(S[n_p:, n_p:] - G @ Skp.T))
         if self._perm is None:
             X += noise
         else:
@@ -255,6 +280,8 @@ class RaoBlackwellizedPF(ParticleCloud):
             return
         z = np.asarray(z, dtype=float)
         Zt = np.asarray(self.model.h_batch(self.particles.T)).T  # (nz, N) predicted means
+        if self.fast and self._update_compiled(Zt, z, idx):
+            return
         if idx.size < Zt.shape[0]:
             Zt, z = Zt[idx], z[idx]
         E = Zt - z[:, None]  # E_i = zhat_i - z
@@ -285,6 +312,29 @@ class RaoBlackwellizedPF(ParticleCloud):
         if kalman:  # every particle's Kalman correction, common gain
             self.particles[self._sk] -= L[m:, :m] @ W
             L22 = L[m:, m:]
-            self.Pk = L22 @ L22.T
+            self.Pk = np.ascontiguousarray(L22 @ L22.T)
         W *= W
         self._reweight(-(self._half[:m] @ W))  # log w_i += log N(z; zhat_i, C) + const
+
+    def _update_compiled(self, Zt: np.ndarray, z: np.ndarray, idx: np.ndarray) -> bool:
+        """:meth:`update` by :func:`~uwcosim.filters.rbpf_kernels.update_step`; False (nothing
+        changed) when a matrix is not positive definite: the numpy code then repairs it."""
+        key = idx.tobytes()
+        b = self._kernel_cache.get(key)
+        if b is None:
+            M0, kpos, Hk, _, kalman = self._blocks(idx)
+            m = idx.size
+            q = M0.shape[0]
+            kp = np.arange(m, dtype=np.intp)[kpos]
+            b = (np.ascontiguousarray(M0[:m, :m]), np.ascontiguousarray(Hk), kp, q - m,
+                 np.zeros((6, q, q)), np.empty((2 * m + 1, self.n)))
+            self._kernel_cache[key] = b
+        R, Hk, kp, nkb, small, work = b
+        code, nis = rk.update_step(Zt, z, idx, R, Hk, kp, self.Pk, nkb, self._w,
+                                   self.particles, self._sk_idx, small, work, self._ll)
+        if code:
+            return False
+        self.diagnostics["nis"] = nis
+        self.diagnostics["nis_dof"] = float(idx.size)
+        self._reweight(self._ll)
+        return True

@@ -44,9 +44,10 @@ def test_every_argument_has_help_and_every_default_is_shown():
         if action.default in (None, False, argparse.SUPPRESS) or action.dest in (
                 "version", "verbose", "quiet"):
             continue
-        helptext = " ".join(parser.format_help().split())
-        shown = " ".join(str(action.default).split())
-        assert f"(default: {shown})" in helptext or "default" in action.help, \
+        # without white space: argparse wraps long defaults (paths) at spaces and hyphens
+        helptext = "".join(parser.format_help().split())
+        shown = "".join(str(action.default).split())
+        assert f"(default:{shown})" in helptext or "default" in action.help, \
             f"{parser.prog}: default of {action.dest} not shown"
     assert seen > 50
 

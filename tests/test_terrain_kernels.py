@@ -120,3 +120,18 @@ def test_filters_give_the_same_bits_with_the_compiled_lookup(tmp_path):
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split()[-1] == "True"
+
+
+@needs_numba
+def test_compiled_point_gives_the_python_bits(model):
+    from uwcosim.models import terrain_kernels as tk
+
+    ft = model._fast_terrain
+    X = _points(500, 5, None)
+    b = ft.bathy
+    X[:3, 0] = b.x0 + b.dx * np.array([0, ft._nx - 1, 3])  # on the edges: one-sided, flat
+    X[:3, 1] = b.y0 + b.dy * np.array([ft._ny - 1, 0, -2])
+    for x, y in X[:, :2].tolist():
+        got = tk.point(ft._table, x, y, ft._x0, ft._y0, ft._idx, ft._idy, ft._nx, ft._ny)
+        assert got == ft._point(x, y)
+        assert ft.point(x, y) == got  # the model's path (Numba is loaded here)

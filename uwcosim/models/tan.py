@@ -164,7 +164,12 @@ class FastTerrain:
         key, out = self._last
         if key is not None and key[0] == x and key[1] == y:
             return out
-        out = self._point(x, y)
+        k = _kernels() if self._table is not None else None
+        if k is None:
+            out = self._point(x, y)
+        else:  # the same operations compiled
+            out = k.point(self._table, x, y, self._x0, self._y0, self._idx, self._idy,
+                          self._nx, self._ny)
         self._last = ((x, y), out)
         return out
 

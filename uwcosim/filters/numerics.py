@@ -39,17 +39,6 @@ def symmetrize_(P: np.ndarray) -> np.ndarray:
     return P
 
 
-def finite(*arrays: np.ndarray) -> bool:
-    """Whether every array is free of NaN and inf (one sum per array; the exact test only when
-    a sum is not finite, e.g. when finite elements overflowed it)."""
-    s = 0.0
-    for a in arrays:
-        s += float(a.sum())
-    if math.isfinite(s):
-        return True
-    return all(bool(np.isfinite(a).all()) for a in arrays)
-
-
 def cholesky(P: np.ndarray) -> np.ndarray | None:
     """Lower Cholesky factor of a finite symmetric ``P``, or ``None`` if not positive definite."""
     L, info = _potrf(P, lower=1)

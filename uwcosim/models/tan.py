@@ -21,7 +21,10 @@ with ``Rot`` the rotation by ``psi`` and ``e = [cos psi, sin psi]``: a linear ma
 :class:`FastTerrain` evaluates the same cubic B-spline as :meth:`Bathymetry.depth` from a table
 of per-cell bicubic polynomial coefficients (16 per cell, 128 bytes: 32 MB for the default
 25 km x 25 km map at 50 m, built once per map in ~0.1 s and shared), one gather and two Horner
-schemes per point. Maps above 512 MB of table fall back to :meth:`Bathymetry.depth`.
+schemes per point. Maps above 512 MB of table fall back to :meth:`Bathymetry.depth`. When
+Numba is already imported (by the grid filters) the lookups of ``h_batch`` and of one point run
+compiled (:mod:`uwcosim.models.terrain_kernels`, the same bits); Numba is never imported for
+them alone. ``h(x)`` then ``H(x)`` at the same point (the EKF) cost one lookup.
 """
 
 from __future__ import annotations

@@ -302,7 +302,7 @@ class TANModel:
         x = np.asarray(x, dtype=float)
         if self._fast_terrain is None:
             return x[2:4].copy()
-        x0, x1, x2, x3 = x.tolist()
+        x0, x1, x2, x3 = x.reshape(-1).tolist()
         return np.array([x2, x3, self._fast_terrain.point(x0, x1)[0]])
 
     def H(self, x) -> np.ndarray:

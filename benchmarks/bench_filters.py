@@ -10,7 +10,11 @@ mean and 95th percentile of that run), so a noisy machine does not decide the ra
 matters for work done once every few steps (the PF draws its process noise for 64 steps at once
 and resamples only when the ESS drops), which the median does not see.
 
-    .venv/bin/python benchmarks/bench_filters.py [--steps 2000] [--repeats 3]
+    .venv/bin/python benchmarks/bench_filters.py [--steps 2000] [--repeats 3] [--numba]
+
+``--numba`` imports Numba first, as a campaign with a grid filter (PFM-PSI, point mass) does:
+the TAN model's terrain lookups then run compiled (:mod:`uwcosim.models.terrain_kernels`, the
+same bits); without it they run in numpy, as in a scenario without grid filters.
 
 FilterPy is a benchmark-only dependency (``pip install filterpy``).
 """
@@ -91,14 +95,19 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--particles", type=int, default=1000)
+    ap.add_argument("--numba", action="store_true",
+                    help="import Numba first (compiled terrain lookups, as with grid filters)")
     args = ap.parse_args()
+    if args.numba:
+        import numba  # noqa: F401
 
     terrain = synthetic_bathymetry(7)
     model = tan_model([0.01, 0.01, 1e-6, 1e-6], 0.05, 2.0, terrain)
     fast = model  # the closed-form TAN model (its CasADi form is model.symbolic)
     truth, zs, x0 = simulate(model, args.steps)
     print(f"TAN model, {args.steps} steps, best of {args.repeats} interleaved runs; "
-          f"{platform.machine()}, Python {platform.python_version()}, numpy {np.__version__}")
+          f"{platform.machine()}, Python {platform.python_version()}, numpy {np.__version__}; "
+          f"terrain lookups {'compiled' if 'numba' in sys.modules else 'numpy'}")
 
     jobs = {}
     for name, settings in (("ukf", {}), ("ckf", {}), ("cukf", {}), ("ekf", {}),

@@ -24,6 +24,7 @@ implementation that is (CasADi, or the closed-form TAN model) is chosen where th
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from typing import Any, Protocol
 
@@ -149,6 +150,8 @@ class FilterBase(Estimator):
         self._use = measurement_use(model, measurements)
         self._predicted = False
         self._R_blocks: dict[bytes, np.ndarray] = {}
+        self._all_idx = np.arange(model.nz)
+        self._all_idx.flags.writeable = False
         check_finite("initial state or covariance", self.x, self.P)
 
     def _begin_predict(self) -> None:
@@ -162,8 +165,14 @@ class FilterBase(Estimator):
         self._predicted = False
         if z is None:
             return None
-        mask = self._use if mask is None else (np.asarray(mask, dtype=bool) & self._use)
-        return select(z, mask, self.model.nz)
+        ok = np.isfinite(z)  # as select(), without its wrappers (every step of every filter)
+        ok &= self._use
+        if mask is not None:
+            ok &= np.asarray(mask, dtype=bool)
+        n = int(np.count_nonzero(ok))
+        if n == ok.size:
+            return self._all_idx  # read-only: the common case, every component
+        return ok.nonzero()[0] if n else None
 
     def _R(self, idx: np.ndarray) -> np.ndarray:
         """``R[idx, idx]`` (cached per set of components)."""
@@ -174,4 +183,6 @@ class FilterBase(Estimator):
         return R
 
     def _check(self, what: str) -> None:
-        check_finite(f"{self.kind} {what}", self.x, self.P)
+        x, P = self.x, self.P
+        if not math.isfinite(float(x.sum()) + float(P.sum())):  # the message only if needed
+            check_finite(f"{self.kind} {what}", x, P)

@@ -31,6 +31,14 @@ def symmetrize(P: np.ndarray) -> np.ndarray:
     return 0.5 * (P + P.T)
 
 
+def symmetrize_(P: np.ndarray) -> np.ndarray:
+    """``(P + P') / 2`` in place (``P`` square, owned by the caller), the same bits as
+    :func:`symmetrize` with one temporary fewer; returns ``P``."""
+    P += P.T  # numpy buffers the overlapping operand: elementwise from the old P
+    P *= 0.5
+    return P
+
+
 def cholesky(P: np.ndarray) -> np.ndarray | None:
     """Lower Cholesky factor of a finite symmetric ``P``, or ``None`` if not positive definite."""
     L, info = _potrf(P, lower=1)
@@ -104,15 +112,35 @@ def kalman_gain(PHt: np.ndarray, S: np.ndarray, counter=None) -> tuple[np.ndarra
     return K, cho
 
 
+def gain_and_nis(PHt: np.ndarray, S: np.ndarray, innov: np.ndarray,
+                 counter=None) -> tuple[np.ndarray, float]:
+    """``(K, nis)``: ``K = P H' S^-1`` and ``y' S^-1 y`` from one factorization of ``S`` and
+    one LAPACK solve with the right-hand sides ``[(P H')', y]`` (as :func:`kalman_gain` and
+    :func:`nis`, with fewer calls)."""
+    S, L = factor(S, counter)
+    m, n = S.shape[0], PHt.shape[0]
+    B = np.empty((m, n + 1), order="F")
+    B[:, :n] = PHt.T
+    B[:, n] = innov
+    X, info = _potrs(L, B, lower=1)
+    if info != 0:  # pragma: no cover - only for malformed input
+        raise FilterDivergence(f"Cholesky solve failed (info={info})")
+    return X[:, :n].T, float(np.dot(innov, X[:, n]))
+
+
 def nis(innov: np.ndarray, cho) -> float:
     """Normalized innovation squared ``y' S^-1 y``."""
     return float(innov @ cho_solve(cho, innov))
 
 
-def joseph_update(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """``P = (I - K H) P (I - K H)' + K R K'`` (Joseph form, symmetrized)."""
-    IKH = np.eye(P.shape[0]) - K @ H
-    return symmetrize(IKH @ P @ IKH.T + K @ R @ K.T)
+def joseph_update(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray,
+                  eye: np.ndarray | None = None) -> np.ndarray:
+    """``P = (I - K H) P (I - K H)' + K R K'`` (Joseph form, symmetrized); ``eye``: the
+    identity of ``P``'s size, if the caller keeps one."""
+    IKH = (np.eye(P.shape[0]) if eye is None else eye) - np.dot(K, H)
+    A = np.dot(np.dot(IKH, P), IKH.T)
+    A += np.dot(np.dot(K, R), K.T)
+    return symmetrize_(A)
 
 
 def psd_factor(Q: np.ndarray) -> np.ndarray:

@@ -16,6 +16,10 @@ redraws the points from the predicted ``(x, P)`` (so on a linear model every rul
 Kalman filter). Weighted means are taken relative to the first point to avoid cancellation with
 large weights; ``P = P - K S K'`` is symmetrized and repaired when the next factorization needs
 it (counted in ``diagnostics['pd_repairs']``).
+
+As in :mod:`uwcosim.filters.kalman`, the steps keep the number of numpy calls low (they are
+bound by numpy's per-call overhead on 4-state models): the point set as one product with a
+constant matrix, ``np.dot``, symmetrization in place, the gain and the NIS from one solve.
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uwcosim.filters.base import FilterBase, register
-from uwcosim.filters.numerics import factor, kalman_gain, nis, symmetrize
+from uwcosim.filters.numerics import factor, gain_and_nis, symmetrize_
 
 
 @dataclass(frozen=True)
@@ -39,22 +43,29 @@ class SigmaRule:
     wc: np.ndarray
     center: bool
 
-    def points(self, x: np.ndarray, L: np.ndarray) -> np.ndarray:
-        """The point set as rows, ``(2n + center, n)``."""
+    def __post_init__(self) -> None:
         n, c = self.n, int(self.center)
-        X = np.empty((2 * n + c, n))
-        X[:] = x
-        sL = self.scale * L.T  # rows are the scaled columns of L
-        X[c : c + n] += sL
-        X[c + n :] -= sL
+        E = np.zeros((2 * n + c, n))  # X = x + E L': rows 0, s e_i, -s e_i
+        E[c : c + n] = self.scale * np.eye(n)
+        E[c + n :] = -self.scale * np.eye(n)
+        object.__setattr__(self, "_E", E)
+        object.__setattr__(self, "_wc_col", self.wc[:, None].copy())
+
+    def points(self, x: np.ndarray, L: np.ndarray) -> np.ndarray:
+        """The point set as rows, ``(2n + center, n)``: ``x + s L_i`` as ``x + (E L')_i``,
+        whose only non-zero term is ``+-s L_ji`` (the same numbers as scaling ``L``)."""
+        X = np.dot(self._E, L.T)
+        X += x
         return X
 
     def moments(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Weighted mean, covariance and deviations ``Y - mean`` of transformed points."""
         ref = Y[0]
-        m = ref + self.wm @ (Y - ref)  # mean = sum wm_i Y_i, computed relative to Y_0
+        D = Y - ref
+        m = np.dot(self.wm, D)  # mean = sum wm_i Y_i, computed relative to Y_0
+        m += ref
         D = Y - m
-        return m, (D.T * self.wc) @ D, D  # P = sum wc_i (Y_i - m)(Y_i - m)'
+        return m, np.dot((self._wc_col * D).T, D), D  # P = sum wc_i (Y_i - m)(Y_i - m)'
 
 
 def unscented_rule(n: int, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0):
@@ -106,20 +117,26 @@ class SigmaPointFilter(FilterBase):
         Q = self.model.Q(self.x, u, dt)
         Y = np.asarray(self.model.f_batch(X, u, dt))  # Y_i = f(X_i, u)
         self.x, P, _ = rule.moments(Y)  # x = sum wm_i Y_i
-        self.P = symmetrize(P + Q)  # P = sum wc_i (Y_i - x)(Y_i - x)' + Q
+        P += Q
+        self.P = symmetrize_(P)  # P = sum wc_i (Y_i - x)(Y_i - x)' + Q
         self._check("prediction")
         return Y
 
     def _correct(self, X: np.ndarray, rule: SigmaRule, z, idx: np.ndarray) -> None:
-        Z = np.asarray(self.model.h_batch(X))[:, idx]  # Z_i = h(X_i)
+        Z = np.asarray(self.model.h_batch(X))  # Z_i = h(X_i)
+        z = np.asarray(z, dtype=float)
+        if idx.size != Z.shape[1]:
+            Z, z = Z[:, idx], z[idx]
         zhat, Pzz, DZ = rule.moments(Z)
-        S = Pzz + self._R(idx)  # S = Pzz + R
-        Pxz = ((X - self.x).T * rule.wc) @ DZ  # Pxz = sum wc_i (X_i - x)(Z_i - z)'
-        K, cho = kalman_gain(Pxz, S, self.diagnostics)  # K = Pxz S^-1
-        y = np.asarray(z, dtype=float)[idx] - zhat  # y = z - zhat
-        self.x = self.x + K @ y  # x = x + K y
-        self.P = symmetrize(self.P - K @ S @ K.T)  # P = P - K S K'
-        self.diagnostics["nis"] = nis(y, cho)
+        S = Pzz
+        S += self._R(idx)  # S = Pzz + R
+        DX = X - self.x
+        Pxz = np.dot((rule._wc_col * DX).T, DZ)  # Pxz = sum wc_i (X_i - x)(Z_i - z)'
+        y = z - zhat  # y = z - zhat
+        K, self.diagnostics["nis"] = gain_and_nis(Pxz, S, y, self.diagnostics)  # K = Pxz S^-1
+        self.x = self.x + np.dot(K, y)  # x = x + K y
+        P = self.P - np.dot(np.dot(K, S), K.T)
+        self.P = symmetrize_(P)  # P = P - K S K'
         self.diagnostics["nis_dof"] = float(idx.size)
         self._check("update")
 

@@ -21,12 +21,16 @@ with ``Rot`` the rotation by ``psi`` and ``e = [cos psi, sin psi]``: a linear ma
 :class:`FastTerrain` evaluates the same cubic B-spline as :meth:`Bathymetry.depth` from a table
 of per-cell bicubic polynomial coefficients (16 per cell, 128 bytes: 32 MB for the default
 25 km x 25 km map at 50 m, built once per map in ~0.1 s and shared), one gather and two Horner
-schemes per point. Maps above 512 MB of table fall back to :meth:`Bathymetry.depth`.
+schemes per point. Maps above 512 MB of table fall back to :meth:`Bathymetry.depth`. When
+Numba is already imported (by the grid filters) the lookups of ``h_batch`` and of one point run
+compiled (:mod:`uwcosim.models.terrain_kernels`, the same bits); Numba is never imported for
+them alone. ``h(x)`` then ``H(x)`` at the same point (the EKF) cost one lookup.
 """
 
 from __future__ import annotations
 
 import math
+import sys
 import weakref
 
 import casadi as ca
@@ -44,6 +48,25 @@ TABLE_MAX_BYTES = 512 * 2**20
 # cubic B-spline basis in the monomial basis: w_a(f) = sum_i _M[a, i] f^i (uwcosim.bspline)
 _M = bspline.MONOMIAL.T
 _TABLES: dict[int, np.ndarray] = {}
+_KERNELS: list = []  # [module of the compiled lookups] once Numba is loaded, [None] if disabled
+
+
+def _kernels():
+    """:mod:`uwcosim.models.terrain_kernels` when Numba is already imported and enabled (it is
+    never imported for this alone: about 0.5 s), else None."""
+    if _KERNELS:
+        return _KERNELS[0]
+    if "numba" not in sys.modules:
+        return None  # asked again at the next call: the grid filters may load it later
+    from uwcosim.filters.grid import jit
+
+    if jit.ENABLED:
+        from uwcosim.models import terrain_kernels
+
+        _KERNELS.append(terrain_kernels)
+    else:
+        _KERNELS.append(None)
+    return _KERNELS[0]
 
 
 def _poly_table(bathy: Bathymetry) -> np.ndarray | None:
@@ -81,10 +104,12 @@ class FastTerrain:
         self._nx, self._ny = nx, ny
         self._idx, self._idy = 1.0 / bathy.dx, 1.0 / bathy.dy
         self._origin = np.array([[bathy.x0], [bathy.y0]])
+        self._x0, self._y0 = (float(v) for v in self._origin[:, 0])
         self._inv_spacing = np.array([[self._idx], [self._idy]])
         self._upper = np.array([[nx - 1.0], [ny - 1.0]])
         self._last_cell = np.array([[nx - 2], [ny - 2]], dtype=np.intp)
         self._table = _poly_table(bathy)
+        self._last: tuple = (None, None)  # ((x, y), point(x, y)): an EKF asks h, then H
 
     def _cells(self, xy: np.ndarray):
         """Polynomial coefficients ``C[i, j, n]`` of the cells and the local ``(u, v)``."""
@@ -121,6 +146,16 @@ class FastTerrain:
         h += q[0]
         return h
 
+    def depth_rows(self, X: np.ndarray, out: np.ndarray) -> None:
+        """``out[n] = h_d(X[n, 0], X[n, 1])`` for the rows of a state array ``X`` (``(N, nx)``):
+        the compiled lookup when Numba is loaded (the same bits), else :meth:`depth_xy`."""
+        k = _kernels() if self._table is not None and X.dtype == np.float64 else None
+        if k is None:
+            out[:] = self.depth_xy(X.T[:2])
+            return
+        k.depth_rows(self._table, X, self._x0, self._y0, self._idx, self._idy, self._nx,
+                     self._ny, out)
+
     def depth(self, x, y) -> np.ndarray:
         """Depth at the points (the value at the nearest edge outside the grid)."""
         h = self.depth_xy(np.array([np.atleast_1d(x), np.atleast_1d(y)], dtype=float))
@@ -128,12 +163,26 @@ class FastTerrain:
 
     def point(self, x: float, y: float) -> tuple[float, float, float]:
         """``(h_d, dh_d/dx, dh_d/dy)`` at one point, in plain floats (no array overhead)."""
+        x, y = float(x), float(y)
+        key, out = self._last
+        if key is not None and key[0] == x and key[1] == y:
+            return out
+        k = _kernels() if self._table is not None else None
+        if k is None:
+            out = self._point(x, y)
+        else:  # the same operations compiled
+            out = k.point(self._table, x, y, self._x0, self._y0, self._idx, self._idy,
+                          self._nx, self._ny)
+        self._last = ((x, y), out)
+        return out
+
+    def _point(self, x: float, y: float) -> tuple[float, float, float]:
         if self._table is None:
             h, gx, gy = self.bathy.gradient(np.array([x]), np.array([y]))
             return float(h[0]), float(gx[0]), float(gy[0])
         nx, ny = self._nx, self._ny
-        u = (float(x) - self.bathy.x0) * self._idx
-        v = (float(y) - self.bathy.y0) * self._idy
+        u = (x - self.bathy.x0) * self._idx
+        v = (y - self.bathy.y0) * self._idy
         flat_u, flat_v = not 0.0 <= u <= nx - 1.0, not 0.0 <= v <= ny - 1.0
         u = min(max(u, 0.0), nx - 1.0)
         v = min(max(v, 0.0), ny - 1.0)
@@ -185,6 +234,8 @@ class TANModel:
         self.R = base.R
         self.terrain = getattr(base, "terrain", None)
         self._fast_terrain = FastTerrain(self.terrain) if self.terrain is not None else None
+        self._H0 = np.zeros((self.nz, 4))  # the constant rows of H (DVL: the velocities)
+        self._H0[0, 2] = self._H0[1, 3] = 1.0
         self._key: tuple | None = None
         self._sqrt_dt: float | None = None
 
@@ -251,20 +302,20 @@ class TANModel:
         x = np.asarray(x, dtype=float)
         if self._fast_terrain is None:
             return x[2:4].copy()
-        return np.array([x[2], x[3], self._fast_terrain.point(x[0], x[1])[0]])
+        x0, x1, x2, x3 = x.reshape(-1).tolist()
+        return np.array([x2, x3, self._fast_terrain.point(x0, x1)[0]])
 
     def H(self, x) -> np.ndarray:
-        H = np.zeros((self.nz, 4))
-        H[0, 2] = H[1, 3] = 1.0
+        H = self._H0.copy()
         if self._fast_terrain is not None:
-            _, H[2, 0], H[2, 1] = self._fast_terrain.point(x[0], x[1])
+            _, H[2, 0], H[2, 1] = self._fast_terrain.point(float(x[0]), float(x[1]))
         return H
 
     def h_batch(self, X: np.ndarray) -> np.ndarray:
         out = np.empty((X.shape[0], self.nz), order="F")
         out[:, :2] = X[:, 2:4]
         if self._fast_terrain is not None:
-            out[:, 2] = self._fast_terrain.depth_xy(X.T[:2])
+            self._fast_terrain.depth_rows(X, out[:, 2])
         return out
 
 

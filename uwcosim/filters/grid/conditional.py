@@ -105,17 +105,20 @@ class ConditionalKalman:
 
     def increment(self, x_full, u, dt: float) -> Increment:
         """Predict the ``k`` block; return the gridded block's increment over the step."""
-        fx, F, Q = self.step(x_full, u, dt)
-        fx = fx.reshape(-1)
         if self.fast:
+            # the model's outputs as views of its buffers (the kernel copies what it keeps)
+            fx, F, Q = self.step.views(x_full, u, dt)
             use_phi = self.long_run and self._phi is not None and bool(self.k)
             phi = self._phi if use_phi else self._eye
             d, D, Dk, self.mean, self.cov = pk.kalman_increment(
-                np.asarray(x_full, float), fx, F, Q, self._p_arr, self._k_arr, self.cov, phi,
-                use_phi)
+                np.asarray(x_full, float), fx.reshape(-1), F, Q, self._p_arr, self._k_arr,
+                self.cov, phi, use_phi)
+            F = F.copy()
             if self.k:
                 self._F = F[self._kk]
             return Increment(d, D, Dk, F)
+        fx, F, Q = self.step(x_full, u, dt)
+        fx = fx.reshape(-1)
         k = self.k
         d = fx[self._ip] - x_full[self._ip]
         D = Q[self._pp]

@@ -16,23 +16,22 @@ An estimate ``(x, P)`` is diverged when
 
 The diverged estimator is stopped and flagged; the others go on.
 
-:meth:`DivergenceCheck.assess` checks all estimators of a step at once, with their NEES
-(:func:`uwcosim.evaluation.metrics.nees`, the same bits): a handful of batched numpy calls per
-step instead of about fifteen per estimator, which were a fifth of a Table 1 run. Only an
-estimate that fails a check goes through the per-estimate path
-(:meth:`DivergenceCheck.__call__`), which words the reason.
+:meth:`DivergenceCheck.assess` checks all estimators of a step at once, with their NEES, in
+scalar code (:mod:`uwcosim.estimate_scan`: compiled when Numba is loaded): about fifteen numpy
+calls per estimator and step were a fifth of a Table 1 run. Only an estimate that fails a
+check there goes through the per-estimate path (:meth:`DivergenceCheck.__call__`), which words
+the reason.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from uwcosim.estimate_scan import SYM_RTOL, scan_estimates
 from uwcosim.evaluation.metrics import nees as metrics_nees
 
-SYM_RTOL = 1e-6
 PD_RTOL = 1e-9
 
 
@@ -76,37 +75,23 @@ class DivergenceCheck:
         """Why each of ``k`` estimates is diverged (empty string if not) and its NEES.
 
         ``X`` ``(k, n)`` estimates, ``Ps`` ``(k, n, n)`` covariances, ``E`` ``(k, n)`` errors
-        (truth minus estimate), ``nis`` ``(k,)`` (NaN when none). The NEES is
-        ``e' P^-1 e`` as :func:`uwcosim.evaluation.metrics.nees` computes it for one step
-        (bit for bit), NaN for a diverged estimate.
+        (truth minus estimate), ``nis`` ``(k,)`` (NaN when none). A healthy estimate's NEES is
+        ``|L^-1 e|^2`` with ``L L' = (P + P')/2`` (:mod:`uwcosim.estimate_scan`); one that
+        fails a check there is checked by :meth:`__call__`, with the reason, and if it is
+        not diverged (e.g. ``P`` singular within round-off) its NEES is ``e' P^-1 e``
+        (:func:`uwcosim.evaluation.metrics.nees`, which may be negative: flagged). NaN for a
+        diverged estimate.
         """
         k = X.shape[0]
-        nees = np.full(k, np.nan)
-        if k == 0:
-            return [], nees
-        fine = math.isfinite(float(X.sum()) + float(Ps.sum()))
-        if fine:  # (numpy reductions on a few numbers: scalar comparisons are cheaper)
-            scale = np.abs(Ps).max(axis=(1, 2))
-            asym = np.abs(Ps - Ps.transpose(0, 2, 1)).max(axis=(1, 2))
-            fine = (float(scale.min()) > 0.0 and float((asym - SYM_RTOL * scale).max()) <= 0.0
-                    and not (nis < 0).any())
-        if fine and self.bound is not None and len(self.pos) >= 2:
-            xmin, xmax, ymin, ymax = self.bound
-            px, py = X[:, self.pos[0]].tolist(), X[:, self.pos[1]].tolist()
-            fine = xmin <= min(px) and max(px) <= xmax and ymin <= min(py) and max(py) <= ymax
-        if fine:
-            try:
-                np.linalg.cholesky(0.5 * (Ps + Ps.transpose(0, 2, 1)))  # all positive definite
-                y = np.linalg.solve(Ps, E[:, :, None])[:, :, 0]
-            except np.linalg.LinAlgError:
-                fine = False
-        if fine:
-            # one dot product per estimate: the bits of ``e @ solve(P, e)`` (metrics.nees)
-            nees[:] = [E[i] @ y[i] for i in range(k)]
-            if not np.any(nees < 0):
-                return [""] * k, nees
+        nees = scan_estimates(X, Ps, E, nis, self.pos, self.bound)
+        bad = np.isnan(nees)
+        if not bad.any():
+            return [""] * k, nees
         whys = []
-        for i in range(k):  # some estimate fails a check: one at a time, with the reason
+        for i in range(k):
+            if not bad[i]:
+                whys.append("")
+                continue
             n_i = float(metrics_nees(E[i][None], Ps[i][None])[0])
             why = self(X[i], Ps[i], float(nis[i]), n_i)
             whys.append(why)

@@ -201,3 +201,22 @@ def test_table1_paper_campaign_short_run(project_fmus, tmp_path):
     assert {r["estimator"] for r in rows} == {"ukf", "pf", "pfm_psi", "ekf", "point_mass"}
     assert len(rows) == 10 and not any(r["diverged"] for r in rows)
     assert all(np.isfinite(r["rmse_position_m"]) and r["rmse_position_m"] < 100 for r in rows)
+
+
+def test_note_when_the_truth_has_no_control_noise_inputs():
+    """A vehicle without w_psi, w_a runs without the control noise; the run's note says the
+    filters' model still adds it (not that it is process noise)."""
+    from types import SimpleNamespace
+
+    from uwcosim.master.varmap import noise_free_notes
+
+    system = SimpleNamespace(noise={
+        "process": SimpleNamespace(targets=["vehicle.w_x"]),
+        "controls": SimpleNamespace(targets=["vehicle.w_psi", "vehicle.w_a"])})
+    notes = noise_free_notes(system, {"process": "vehicle", "controls": "vehicle"}, False,
+                             "controls")
+    assert notes[0].endswith("the filters' process noise is model.q_psd, which defaults to "
+                             "these PSDs")
+    assert notes[1] == ("the truth ran noise-free: FMU 'vehicle' has no inputs w_psi, w_a for "
+                        "noise 'controls'; the filters' model still adds it as control noise "
+                        "(model.control_noise)")

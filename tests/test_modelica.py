@@ -29,7 +29,7 @@ DT = 0.1
 # Interface of each model as exposed by the project's FMUs: (inputs, outputs).
 INTERFACES = {
     "UWCoSim.AUVKinematics": (
-        {"psi", "a", "w_x", "w_y", "w_vx", "w_vy"},
+        {"psi", "a", "w_x", "w_y", "w_vx", "w_vy", "w_psi", "w_a"},
         {"x", "y", "vx", "vy", "psi_out"},
     ),
     "UWCoSim.DVL": ({"vx", "vy", "e_vx", "e_vy"}, {"vx_m", "vy_m"}),

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
-import pytest
 from scipy import ndimage
 
 from uwcosim.filters.grid.partition import Partition
@@ -88,7 +87,9 @@ def test_galerkin_prediction_converges_to_exact_transport():
 def test_noisy_controls_keep_the_tan_position_drift_constant():
     """Noisy heading and acceleration (seed 000 Fig. 6: "control vector with noise") make the
     position diffusion depend on the velocity, not on the position: with the gridded position
-    (x, y) PFM-PSI stays on its constant-drift path; the full 4-D state cannot be gridded."""
+    (x, y) PFM-PSI stays on its constant-drift path. The automatic split makes the same choice:
+    only the velocity block's own noise B[k, k] (state-independent) must not depend on the state,
+    the velocity-dependent position diffusion does not stop (vx, vy) from being Kalman states."""
     x = ca.SX.sym("x", 4)
     u = ca.SX.sym("u", 2)
     w = ca.SX.sym("w", 6)  # w_x, w_y, w_vx, w_vy, w_psi, w_a
@@ -104,5 +105,5 @@ def test_noisy_controls_keep_the_tan_position_drift_constant():
     model.ode = ode
     part = Partition(model, states=["x", "y"])
     assert part.drift_constant and part.diffusion_constant  # B depends on (vx, vy) only
-    with pytest.raises(ValueError, match="at most 3 are supported"):
-        Partition(model)
+    auto = Partition(model)
+    assert (auto.p, auto.k) == ([0, 1], [2, 3]) and auto.drift_constant

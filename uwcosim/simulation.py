@@ -142,7 +142,8 @@ def simulation_record(master: Master, bank: EstimatorBank | None, loaded: Loaded
     if master.noise_free:
         spec = loaded.spec
         rec["notes"] = noise_free_notes(master.system, master.noise_free,
-                                        spec.model is not None and spec.model.q_psd is not None)
+                                        spec.model is not None and spec.model.q_psd is not None,
+                                        spec.model.control_noise if spec.model else None)
     return rec
 
 

@@ -12,16 +12,22 @@ model AUVKinematics "AUV planar kinematics of the seed paper, eq. (54)"
   RealInput w_y(unit = "m/s") "Process noise on der(y)";
   RealInput w_vx(unit = "m/s2") "Process noise on der(vx)";
   RealInput w_vy(unit = "m/s2") "Process noise on der(vy)";
+  RealInput w_psi(unit = "rad") "Control noise added to the heading";
+  RealInput w_a(unit = "m/s2") "Control noise added to the acceleration";
+  Real psi_v(unit = "rad") "Heading the vehicle follows: psi + w_psi";
+  Real a_v(unit = "m/s2") "Acceleration the vehicle follows: a + w_a";
   RealOutput x(unit = "m", start = x0, fixed = true) "East position";
   RealOutput y(unit = "m", start = y0, fixed = true) "North position";
   RealOutput vx(unit = "m/s", start = vx0, fixed = true) "Velocity state vx";
   RealOutput vy(unit = "m/s", start = vy0, fixed = true) "Velocity state vy";
   RealOutput psi_out(unit = "rad") "Heading, passed through";
 equation
-  der(x) = vx*cos(psi) - vy*sin(psi) + w_x;
-  der(y) = vy*cos(psi) + vx*sin(psi) + w_y;
-  der(vx) = a*cos(psi) + w_vx;
-  der(vy) = a*sin(psi) + w_vy;
+  psi_v = psi + w_psi;
+  a_v = a + w_a;
+  der(x) = vx*cos(psi_v) - vy*sin(psi_v) + w_x;
+  der(y) = vy*cos(psi_v) + vx*sin(psi_v) + w_y;
+  der(vx) = a_v*cos(psi_v) + w_vx;
+  der(vy) = a_v*sin(psi_v) + w_vy;
   psi_out = psi;
   annotation (Documentation(info = "<html>
 <p>Seed paper eq. (54), reproduced as printed (the velocity state is rotated by psi for the

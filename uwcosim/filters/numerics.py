@@ -165,12 +165,13 @@ def linearize(model, x: np.ndarray, u, dt: float) -> tuple[np.ndarray, np.ndarra
     """``(F, Q)`` of the transition at ``x``: one call where the model offers it.
 
     Uses ``model.FQ`` if present, else ``model.FG`` with ``Q = G diag(q_psd/dt) G'`` (the
-    CasADi models), else ``model.F`` and ``model.Q``.
+    CasADi models without control noise), else ``model.F`` and ``model.Q``.
     """
     fq = getattr(model, "FQ", None)
     if fq is not None:
         return fq(x, u, dt)
-    if hasattr(model, "FG") and hasattr(model, "q_psd"):
+    if hasattr(model, "FG") and hasattr(model, "q_psd") \
+            and getattr(model, "control_psd", None) is None:
         F, G = model.FG(x, u, dt)
         return F, (G * (model.q_psd / dt)) @ G.T  # Q = G diag(psd/dt) G'
     return model.F(x, u, dt), model.Q(x, u, dt)

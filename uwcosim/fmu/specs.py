@@ -24,7 +24,7 @@ from pathlib import Path
 import casadi as ca
 
 from uwcosim.errors import FMUError
-from uwcosim.models.auv_equations import dvl_output, vehicle_ode
+from uwcosim.models.auv_equations import dvl_output, noisy_controls, vehicle_ode
 from uwcosim.models.cv_equations import constant_velocity_ode
 
 #: base-unit exponents of every unit the FMUs use (FMI UnitDefinitions)
@@ -184,8 +184,8 @@ _MAX_STEP = Var("max_internal_step", "s", 0.1,
 
 
 def _auv(x, u, p, z):
-    xdot = vehicle_ode()(x, u[0:2], u[2:6])
-    return xdot, u[0]
+    xdot = vehicle_ode()(x, noisy_controls(u[0:2], u[6:8]), u[2:6])
+    return xdot, u[0]  # psi_out: the commanded heading
 
 
 def _constant_velocity(x, u, p, z):
@@ -204,7 +204,7 @@ def _auv_spec() -> ModelSpec:
     return ModelSpec(
         name="AUVKinematics",
         description="AUV planar kinematics, eq. (54): states x, y, vx, vy; heading and "
-                    "acceleration inputs; additive process noise",
+                    "acceleration inputs; additive process noise and control noise",
         equations=_auv,
         states=(
             Var("x", "m", 0.0, "East position", der_unit="m/s"),
@@ -219,9 +219,11 @@ def _auv_spec() -> ModelSpec:
             Var("w_y", "m/s", 0.0, "Process noise on y'"),
             Var("w_vx", "m/s2", 0.0, "Process noise on vx'"),
             Var("w_vy", "m/s2", 0.0, "Process noise on vy'"),
+            Var("w_psi", "rad", 0.0, "Control noise added to the heading psi"),
+            Var("w_a", "m/s2", 0.0, "Control noise added to the acceleration a"),
         ),
         params=(_MAX_STEP,),
-        outputs=(Var("psi_out", "rad", 0.0, "Heading (passthrough of psi)"),),
+        outputs=(Var("psi_out", "rad", 0.0, "Heading (passthrough of the commanded psi)"),),
     )
 
 

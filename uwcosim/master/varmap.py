@@ -346,12 +346,15 @@ def noise_free_sources(system: System, adapters: dict) -> dict[str, str]:
     return out
 
 
-def noise_free_notes(system: System, noise_free: dict[str, str], q_psd_given: bool) -> list[str]:
-    """One line per noise source the truth ran without (see :func:`noise_free_sources`)."""
+def noise_free_notes(system: System, noise_free: dict[str, str], q_psd_given: bool,
+                     control_noise: str | None = None) -> list[str]:
+    """One line per noise source the truth ran without (see :func:`noise_free_sources`);
+    ``control_noise``: the source the filters' model takes as control noise."""
     q = "model.q_psd" if q_psd_given else "model.q_psd, which defaults to these PSDs"
+    cn = "the filters' model still adds it as control noise (model.control_noise)"
     return [f"the truth ran noise-free: FMU {fmu!r} has no inputs "
             f"{', '.join(t.partition('.')[2] for t in system.noise[n].targets)} for "
-            f"noise {n!r}; the filters' process noise is {q}"
+            f"noise {n!r}; " + (cn if n == control_noise else f"the filters' process noise is {q}")
             for n, fmu in noise_free.items()]
 
 

@@ -12,6 +12,9 @@ Vehicle (eq. 54)::
 
 with state ``[x, y, vx, vy]`` (m, m/s), inputs heading ``psi`` (rad) and acceleration ``a``
 (m/s^2), and four process-noise inputs ``w`` (held constant over a communication step).
+The vehicle FMU adds two control-noise inputs ``w_psi``, ``w_a`` (default 0) to ``psi`` and
+``a`` before these equations (:func:`noisy_controls`): the truth then follows noisy controls
+while the filters know the commanded ones (seed 000, Fig. 6, "control vector with noise").
 The paper's model is reproduced as printed: the velocity state is rotated by psi for the
 position rate while the acceleration is applied along psi.
 
@@ -29,6 +32,12 @@ from uwcosim.integrators import rk4
 STATE_NAMES = ("x", "y", "vx", "vy")
 CONTROL_NAMES = ("psi", "a")
 NOISE_NAMES = ("w_x", "w_y", "w_vx", "w_vy")
+CONTROL_NOISE_NAMES = ("w_psi", "w_a")
+
+
+def noisy_controls(u, w_u):
+    """The controls the vehicle follows: the commanded ``[psi, a]`` plus the control noise."""
+    return u + w_u
 
 
 def vehicle_ode() -> ca.Function:

@@ -6,6 +6,10 @@ need: ``f`` (one RK4 step), the Jacobians ``F = df/dx`` and ``G = df/dw``, the d
 covariance ``Q = G diag(psd / dt) G'`` (a held white-noise sample of power spectral density
 ``psd`` has variance ``psd / dt``), ``H = dh/dx``, and batch versions for particle and sigma-point
 filters (``casadi.Function.map``). Functions are built once per model.
+
+With ``control_psd`` (noise on the controls, held over the step, that the truth follows and the
+filters know) ``Q`` adds ``J_u diag(control_psd / dt) J_u'`` with ``J_u = df/du`` at the state
+and control of the call (first order in the control noise; ``Q`` then depends on the state).
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ class CasadiModel:
         state_names: tuple[str, ...],
         measurement_names: tuple[str, ...],
         substeps: int = 1,
+        control_psd=None,
     ) -> None:
         self.ode = ode  # the continuous drift (projection filters use it)
         self.nx = int(ode.size1_in(0))
@@ -54,6 +59,12 @@ class CasadiModel:
             "FG", [x, u, dt],
             [ca.substitute(ca.jacobian(xf, x), w, w0), ca.substitute(ca.jacobian(xf, w), w, w0)],
         ).expand()
+        self.control_psd = self._Ju = None
+        if control_psd is not None:
+            self.control_psd = np.asarray(control_psd, dtype=float).reshape(self.nu)
+            # Jacobian of the noise-free step with respect to the controls
+            self._Ju = ca.Function("Ju", [x, u, dt],
+                                   [ca.substitute(ca.jacobian(xf, u), w, w0)]).expand()
         self._h = h
         xs = ca.MX.sym("x", self.nx)
         self._H = ca.Function("H", [xs], [ca.jacobian(h(xs), xs)])
@@ -73,7 +84,11 @@ class CasadiModel:
 
     def Q(self, x, u, dt: float) -> np.ndarray:
         G = self.FG(x, u, dt)[1]
-        return (G * (self.q_psd / dt)) @ G.T  # Q = G diag(psd/dt) G'
+        Q = (G * (self.q_psd / dt)) @ G.T  # Q = G diag(psd/dt) G'
+        if self.control_psd is not None:
+            Ju = np.asarray(self._Ju(x, u, dt))
+            Q = Q + (Ju * (self.control_psd / dt)) @ Ju.T
+        return Q
 
     def h(self, x) -> np.ndarray:
         return np.asarray(self._h(x)).reshape(self.nz)

@@ -1,7 +1,9 @@
 """Build the filters' state-space model of a scenario (``[model]``) from its truth settings.
 
 By default the filters are matched to the truth: ``Q`` from the ``[noise]`` PSDs and ``R`` from
-the sensors' ``sigma``; ``model.q_psd`` overrides the former. The scenario was validated when
+the sensors' ``sigma``; ``model.q_psd`` overrides the former. ``model.control_noise`` names the
+``[noise]`` source on the controls whose PSDs the TAN model's ``Q`` includes (not part of the
+default ``q_psd``). The scenario was validated when
 it was loaded (:func:`uwcosim.scenario.validate.reference_problems`: sensors, sigma per output,
 the number of PSDs and the sensors the TAN model takes, a map for a depth sensor).
 
@@ -16,13 +18,14 @@ from __future__ import annotations
 import numpy as np
 
 from uwcosim.models.terrain import Bathymetry
+from uwcosim.scenario.schema import model_noise_psds
 
 
 def build_model(loaded, bathymetry: Bathymetry | None):
     """The filters' model of a validated scenario (``[model]``)."""
     spec = loaded.spec
     m = spec.model
-    q = m.q_psd if m.q_psd is not None else [p for nz in spec.noise.values() for p in nz.psd]
+    q, qc = model_noise_psds(spec)
     sensors = [spec.sensors[s] for s in m.sensors]
     names = tuple(o for s in sensors for o in s.outputs)
     if m.kind == "tan":
@@ -30,7 +33,7 @@ def build_model(loaded, bathymetry: Bathymetry | None):
 
         depth = len(sensors) == 2
         return tan_model(q, sensors[0].sigma, sensors[1].sigma[0] if depth else None,
-                         bathymetry if depth else None, names)
+                         bathymetry if depth else None, names, control_psd=qc)
     from uwcosim.models.linear import constant_velocity_model
 
     r = np.array([sg**2 for s in sensors for sg in s.sigma])

@@ -18,6 +18,14 @@ with ``Rot`` the rotation by ``psi`` and ``e = [cos psi, sin psi]``: a linear ma
 ``x' = F x + b + G w`` with ``F = [[I, dt Rot], [0, I]]`` and ``G = [[dt I, dt^2/2 Rot],
 [0, dt I]]``.
 
+Control noise (``control_psd``, the scenario's ``model.control_noise``): when the truth follows
+``psi + w_psi`` and ``a + w_a`` (white noise held over the step, PSDs ``q_c``) while the filters
+know the commanded controls, the step is linearized in the controls and
+``Q = G diag(q/dt) G' + J diag(q_c/dt) J'`` with ``J = d x'/d(psi, a)`` at the current state and
+control (:func:`control_jacobian`). The heading column depends on the velocity
+(``dt Rot'(psi) v``), so ``Q`` then depends on the state (``Q_depends_on_x``); filters evaluate it
+at their estimate. The acceleration column is exact (the step is linear in ``a``).
+
 :class:`FastTerrain` evaluates the same cubic B-spline as :meth:`Bathymetry.depth` from a table
 of per-cell bicubic polynomial coefficients (16 per cell, 128 bytes: 32 MB for the default
 25 km x 25 km map at 50 m, built once per map in ~0.1 s and shared), one gather and two Horner
@@ -218,12 +226,28 @@ class FastTerrain:
         return out if np.ndim(x) else tuple(a[0] for a in out)
 
 
+def control_jacobian(x, u, dt: float) -> np.ndarray:
+    """``J = d x'/d(psi, a)`` (4 x 2) of the exact step at ``(x, u)``, noise-free.
+
+    ``p' = p + dt Rot v + dt^2/2 a [cos 2psi, sin 2psi]``, ``v' = v + dt a [cos psi, sin psi]``.
+    """
+    psi, a, dt = float(u[0]), float(u[1]), float(dt)
+    vx, vy = float(x[2]), float(x[3])
+    c, s = math.cos(psi), math.sin(psi)
+    c2, s2 = c * c - s * s, 2.0 * s * c
+    h2 = 0.5 * dt * dt
+    return np.array([[dt * (-s * vx - c * vy) - 2.0 * h2 * a * s2, h2 * c2],
+                     [dt * (c * vx - s * vy) + 2.0 * h2 * a * c2, h2 * s2],
+                     [-dt * a * s, dt * c],
+                     [dt * a * c, dt * s]])
+
+
 class TANModel:
     """The TAN model in closed form (numpy), built by :func:`tan_model`; same protocol as
     :class:`~uwcosim.models.casadi_model.CasadiModel`, which it carries as ``symbolic``."""
 
     linear = False
-    Q_depends_on_x = False  # Q = G diag(psd/dt) G' depends on (u, dt) only
+    Q_depends_on_x = False  # Q = G diag(psd/dt) G' depends on (u, dt) only (no control noise)
 
     def __init__(self, base: CasadiModel) -> None:
         self.symbolic = base  # the same model as CasADi expressions (grid filters use them)
@@ -231,6 +255,10 @@ class TANModel:
         self.state_names = base.state_names
         self.measurement_names = base.measurement_names
         self.q_psd = base.q_psd
+        #: PSDs of the noise on (psi, a) the filters know, or None (module docstring)
+        self.control_psd = base.control_psd
+        if self.control_psd is not None:
+            self.Q_depends_on_x = True  # the heading noise enters through Rot'(psi) v
         self.R = base.R
         self.terrain = getattr(base, "terrain", None)
         self._fast_terrain = FastTerrain(self.terrain) if self.terrain is not None else None
@@ -280,12 +308,28 @@ class TANModel:
     def F(self, x, u, dt: float) -> np.ndarray:
         return self._mats(u, dt)[0].copy()
 
+    def _control_factor(self, x, u, dt: float) -> np.ndarray:
+        """``J diag(q_c/dt)^(1/2)``: the control noise's part of a factor of ``Q``."""
+        return control_jacobian(x, u, dt) * np.sqrt(self.control_psd / float(dt))
+
     def Q(self, x, u, dt: float) -> np.ndarray:
-        return self._Q(u, dt).copy()
+        if self.control_psd is None:
+            return self._Q(u, dt).copy()
+        Lc = self._control_factor(x, u, dt)
+        Q = self._Q(u, dt) + Lc @ Lc.T
+        return 0.5 * (Q + Q.T)
 
     def Q_factor(self, x, u, dt: float) -> np.ndarray:
         """``L = G diag(psd/dt)^(1/2)`` with ``L L' = Q`` (read-only, cached per ``(u, dt)``):
-        samples ``N(0, Q)`` without a Cholesky factorization."""
+        samples ``N(0, Q)`` without a Cholesky factorization. With control noise ``L`` is
+        ``[G diag(psd/dt)^(1/2), J diag(q_c/dt)^(1/2)]`` (4 x 6), computed at ``x``."""
+        if self.control_psd is not None:
+            Lw = self.Q_factor_process(u, dt)
+            return np.hstack([Lw, self._control_factor(x, u, dt)])
+        return self.Q_factor_process(u, dt)
+
+    def Q_factor_process(self, u, dt: float) -> np.ndarray:
+        """The process noise's factor ``G diag(psd/dt)^(1/2)`` (cached per ``(u, dt)``)."""
         m = self._mats(u, dt)
         if m[4] is None:
             dt = float(dt)
@@ -296,7 +340,7 @@ class TANModel:
         return m[4]
 
     def FQ(self, x, u, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        return self._mats(u, dt)[0].copy(), self._Q(u, dt).copy()
+        return self._mats(u, dt)[0].copy(), self.Q(x, u, dt)
 
     def h(self, x) -> np.ndarray:
         x = np.asarray(x, dtype=float)
@@ -325,8 +369,10 @@ def tan_model(
     depth_sigma: float | None = None,
     terrain: Bathymetry | None = None,
     measurement_names: tuple[str, ...] | None = None,
+    control_psd=None,
 ) -> TANModel:
-    """TAN model; without ``terrain`` only the DVL is measured (dead-reckoning variant)."""
+    """TAN model; without ``terrain`` only the DVL is measured (dead-reckoning variant).
+    ``control_psd``: PSDs of the noise on ``(psi, a)`` the filters know (None: none)."""
     x = ca.MX.sym("x", 4)
     rows = [x[2], x[3]]
     r = list(np.broadcast_to(np.asarray(dvl_sigma, dtype=float), (2,)) ** 2)
@@ -341,6 +387,7 @@ def tan_model(
     symbolic = CasadiModel(
         vehicle_ode(), h, q_psd, np.array(r), STATE_NAMES,
         tuple(measurement_names) if measurement_names else tuple(names),
+        control_psd=control_psd,
     )
     symbolic.terrain = terrain
     return TANModel(symbolic)

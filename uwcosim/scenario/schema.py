@@ -202,6 +202,23 @@ class ModelSpec(Strict):
     controls: list[Str] = []
     sensors: list[Str]
     q_psd: list[NonNegativeFloat] | None = None
+    #: a ``[noise.NAME]`` source on the truth's controls (heading, acceleration) that the
+    #: filters know: its PSDs enter Q through the step's Jacobian in the controls (tan only)
+    control_noise: Str | None = Field(
+        None, description="name of the [noise.NAME] source on the vehicle's controls (psi, a) "
+        "that the filters' Q includes, mapped through the step's Jacobian in the controls "
+        "(tan model; default: none)")
+
+
+def model_noise_psds(spec: Scenario) -> tuple[list[float], list[float] | None]:
+    """``(q, q_c)`` of the filters' model: the process-noise PSDs (``model.q_psd``, else every
+    ``[noise]`` source but the control noise) and the control-noise PSDs (or None)."""
+    m = spec.model
+    cn = m.control_noise if m is not None else None
+    q = m.q_psd if m is not None and m.q_psd is not None else \
+        [p for name, nz in spec.noise.items() if name != cn for p in nz.psd]
+    qc = list(spec.noise[cn].psd) if cn is not None and cn in spec.noise else None
+    return list(q), qc
 
 
 class EstimatorSpec(BaseModel):

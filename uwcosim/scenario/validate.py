@@ -207,12 +207,16 @@ def reference_problems(spec: Scenario, where: str) -> list[Problem]:
             if len(sen.sigma) != len(sen.outputs):
                 out.append(f"key 'sensors.{s}.sigma': the filter model needs one sigma per "
                            f"output ({len(sen.outputs)})")
-        q = m.q_psd if m.q_psd is not None else [p for nz in spec.noise.values() for p in nz.psd]
+        q, _ = schema.model_noise_psds(spec)
+        out += _control_noise_problems(spec)
         if m.kind == "tan":
             if len(q) != 4:
                 what = "model.q_psd" if m.q_psd is not None else "noise"
+                hint = ("; name the control-noise source in model.control_noise or give "
+                        "model.q_psd" if len(spec.noise) > 1 and m.control_noise is None
+                        and m.q_psd is None else "")
                 out.append(f"key '{what}': the TAN model needs 4 process-noise PSDs "
-                           f"(x, y, vx, vy), got {len(q)}")
+                           f"(x, y, vx, vy), got {len(q)}{hint}")
             shapes = [len(spec.sensors[s].outputs) for s in known]
             if len(known) == len(m.sensors) and shapes not in ([2], [2, 1]):
                 out.append(f"key 'model.sensors': the TAN model takes a 2-output velocity "
@@ -233,6 +237,25 @@ def reference_problems(spec: Scenario, where: str) -> list[Problem]:
         out.insert(0, f"key 'run.duration': must be a whole number of steps of "
                    f"{spec.run.step:g} s (got {spec.run.duration:g})")
     return [Problem(f"{where}: {msg}") for msg in out]
+
+
+def _control_noise_problems(spec: Scenario) -> list[str]:
+    """Problems of ``model.control_noise`` (the noise source on the controls)."""
+    m = spec.model
+    name = m.control_noise
+    if name is None:
+        return []
+    key = "key 'model.control_noise'"
+    if m.kind != "tan":
+        return [f"{key}: only the tan model has controls (model.kind is {m.kind!r})"]
+    if name not in spec.noise:
+        return [f"{key}: unknown noise source {name!r} (noise: "
+                f"{', '.join(spec.noise) or 'none'})"]
+    n = len(spec.noise[name].psd)
+    if n != 2 or len(m.controls) != 2:
+        return [f"{key}: noise {name!r} needs one PSD per model control (psi, a): 2 PSDs "
+                f"and 2 model.controls, got {n} and {len(m.controls)}"]
+    return []
 
 
 def validate_data(data: dict, where: str) -> tuple[Scenario | None, list[Problem]]:

@@ -15,6 +15,8 @@ equation
   vehicle.w_y = 0;
   vehicle.w_vx = 0;
   vehicle.w_vy = 0;
+  vehicle.w_psi = 0;
+  vehicle.w_a = 0;
   connect(vehicle.vx, dvl.vx);
   connect(vehicle.vy, dvl.vy);
   dvl.e_vx = 0;

@@ -131,21 +131,31 @@ class Partition:
         u = ca.SX.sym("u", nu)
         dt = ca.SX.sym("dt")
         ode = getattr(model, "ode", None)
+        qc = getattr(model, "control_psd", None)
         if ode is not None:
             w = ca.SX.sym("w", model.nw)
             xdot = ode(x, u, w)
             f = ca.substitute(xdot, w, ca.DM.zeros(model.nw))
             G = ca.substitute(ca.jacobian(xdot, w), w, ca.DM.zeros(model.nw))
             B = G @ ca.diag(ca.DM(model.q_psd)) @ G.T
+            if qc is not None:  # control noise: its diffusion through df/du
+                Ju = ca.substitute(ca.jacobian(xdot, u), w, ca.DM.zeros(model.nw))
+                B = B + Ju @ ca.diag(ca.DM(qc)) @ Ju.T
         else:
             F_d, G = model._FG(x, u, dt)
             f = (model._f(x, u, dt) - x) / dt
             B = G @ ca.diag(ca.DM(model.q_psd)) @ G.T / dt**2  # B dt = Q_d
+            if qc is not None:
+                Ju = model._Ju(x, u, dt)
+                B = B + Ju @ ca.diag(ca.DM(qc)) @ Ju.T / dt**2
         self.continuous = ode is not None
         Jf = ca.jacobian(f, x)
         f_dep = np.array(ca.DM(Jf.sparsity(), 1)).astype(bool)
         f_lin = [not _depends(Jf[i, :], x) for i in range(nx)]
-        B_dep = [_depends(B[i, :], x) for i in range(nx)]
+        # B[j, i] depends on the state: with control noise the heading's diffusion of the
+        # position depends on the velocity, which does not stop the velocity from being a
+        # Kalman state as long as the velocity block's own noise B[k, k] does not
+        B_dep = np.array([[_depends(B[j, i], x) for i in range(nx)] for j in range(nx)])
         xm = ca.MX.sym("x", nx)
         Jh = ca.jacobian(model._h(xm), xm)
         h_dep = np.array(ca.DM(Jh.sparsity(), 1)).astype(bool)
@@ -164,7 +174,7 @@ class Partition:
                 for j in sorted(k):
                     bad = (
                         not f_lin[j]
-                        or B_dep[j]
+                        or any(B_dep[j, i] for i in k)
                         or any(f_dep[j, i] and i not in k for i in range(nx))
                         or any(h_dep[r, j] and bad_row(r, k) for r in rows)
                     )
@@ -189,6 +199,9 @@ class Partition:
         xs, us, dts = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("dt")
         Fd, Gd = model._FG(xs, us, dts)
         Qd = Gd @ ca.diag(ca.DM(model.q_psd) / dts) @ Gd.T
+        if qc is not None:  # evaluated where the filters call it: at their estimate
+            Jud = model._Ju(xs, us, dts)
+            Qd = Qd + Jud @ ca.diag(ca.DM(qc) / dts) @ Jud.T
         step = ca.Function("step", [xs, us, dts], [model._f(xs, us, dts), Fd, Qd])
         self.step = FastFunction(step)
         # the Kalman rows are affine in x: h_rows(x) = H_rows x + c_rows

@@ -44,6 +44,11 @@ from uwcosim.filters.grid.partition import Partition, symbolic
 from uwcosim.filters.grid.spectral import axes_moments
 from uwcosim.filters.numerics import symmetrize
 
+try:  # scipy.fft's pocketfft binding: the transforms of rfft2/irfft2 without their dispatch
+    from scipy.fft._pocketfft import pypocketfft as _pocketfft
+except ImportError:  # pragma: no cover - another scipy layout: the public functions
+    _pocketfft = None
+
 _TAPS = np.arange(-1, 3)
 _POWERS = np.arange(4.0)
 # cubic B-spline weights from the powers of the fraction: w_a(f) = sum_i f^i _BSPLINE[i, a]
@@ -96,6 +101,42 @@ def gaussian_convolve(values: np.ndarray, spacing, D: np.ndarray) -> np.ndarray:
     X *= np.exp(-quad)
     out = sfft.irfftn(X, s=shape)
     return out[tuple(slice(0, values.shape[d]) for d in range(n))]
+
+
+@lru_cache(maxsize=256)
+def _fast_len(n: int) -> int:
+    """``sfft.next_fast_len(n, real=True)`` (cached: called twice per prediction)."""
+    return sfft.next_fast_len(n, real=True)
+
+
+class _FFTPlan:
+    """Work arrays of the two-dimensional prediction for one padded shape (per filter): the
+    zero-padded input, its spectrum, the inverse transform's output, the prefilter factors."""
+
+    __slots__ = ("buf", "spec", "out", "col", "row", "last")
+
+    def __init__(self, shape: tuple[int, int]) -> None:
+        self.buf = np.zeros(shape)
+        self.spec = np.empty((shape[0], shape[1] // 2 + 1), dtype=complex)
+        self.out = np.empty(shape)
+        self.col, self.row = _inverse_bspline_factors(shape)
+        self.last = shape[1]
+
+    def forward(self) -> np.ndarray:
+        """``spec = rfft2(buf)`` (same transform as :func:`scipy.fft.rfft2`, into ``spec``)."""
+        if _pocketfft is None:
+            self.spec[...] = sfft.rfft2(self.buf)
+        else:
+            _pocketfft.r2c(self.buf, (0, 1), True, 0, self.spec, 1)
+        return self.spec
+
+    def inverse(self) -> np.ndarray:
+        """``out = irfft2(spec, s=shape)`` (as :func:`scipy.fft.irfft2`, into ``out``)."""
+        if _pocketfft is None:
+            self.out[...] = sfft.irfft2(self.spec, s=self.out.shape)
+        else:
+            _pocketfft.c2r(self.spec, (0, 1), self.last, False, 2, self.out, 1)
+        return self.out
 
 
 @lru_cache(maxsize=32)
@@ -272,7 +313,7 @@ class PointMassFilter(Estimator):
         #: compiled kernels (projection_kernels) for two gridded states when Numba is there;
         #: False runs the numpy code (same results to round-off)
         self.fast: bool = bool(pk.ENABLED and n == 2)
-        self._buffers: dict[tuple[int, int], np.ndarray] = {}  # zero-padded FFT inputs
+        self._plans: dict[tuple[int, int], _FFTPlan] = {}  # FFT work arrays per shape
         self.kalman.fast = self.fast
         self._var = [float(v) for v in np.diag(model.R)]
         self._set_estimate()
@@ -350,20 +391,18 @@ class PointMassFilter(Estimator):
         n0, n1 = self.values.shape
         p0 = max(int(math.ceil(7.0 * math.sqrt(max(D[0, 0], 0.0)) / sp0)) + 1, SPLINE_PAD)
         p1 = max(int(math.ceil(7.0 * math.sqrt(max(D[1, 1], 0.0)) / sp1)) + 1, SPLINE_PAD)
-        shape = (sfft.next_fast_len(n0 + min(p0, n0), real=True),
-                 sfft.next_fast_len(n1 + min(p1, n1), real=True))
-        buf = self._buffers.get(shape)  # per filter: filters in other threads have their own
-        if buf is None:
-            if len(self._buffers) > 8:
-                self._buffers.clear()
-            buf = self._buffers[shape] = np.empty(shape)
+        shape = (_fast_len(n0 + min(p0, n0)), _fast_len(n1 + min(p1, n1)))
+        plan = self._plans.get(shape)  # per filter: filters in other threads have their own
+        if plan is None:
+            if len(self._plans) > 8:
+                self._plans.clear()
+            plan = self._plans[shape] = _FFTPlan(shape)
         new0, new1, c0, c1, mean, cov = pk.pm_grid_shift(
             self.values, self._axes[0], self._axes[1], self._mean, self._cov, inc.d, D,
-            self.span, self._unit[0], self._unit[1], buf)
-        X = sfft.rfft2(buf)
-        col, row = _inverse_bspline_factors(shape)
-        pk.pm_gauss_prefilter(X, shape[1], sp0, sp1, D, col, row)
-        out = sfft.irfft2(X, s=shape)
+            self.span, self._unit[0], self._unit[1], plan.buf)
+        X = plan.forward()
+        pk.pm_gauss_prefilter(X, shape[1], sp0, sp1, D, plan.col, plan.row)
+        out = plan.inverse()
         self.axes = [new0, new1]
         self.values, mass = pk.pm_finish(out, c0, c1, n0, n1, self._cell)
         if not (math.isfinite(mass) and mass > 0):

@@ -163,13 +163,23 @@ def pm_gauss_prefilter(X, L1, sp0, sp1, D, col, row):
 
 
 @_jit
+def _scale2(a, s):
+    """``a *= s`` (a 2-D array; the normalizations multiply by the reciprocal of the mass:
+    a division per grid point costs about 4x a multiplication, and the results differ by at
+    most 1 ulp)."""
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            a[i, j] *= s
+
+
+@_jit
 def pm_finish(X, coords0, coords1, n0, n1, cell):
     """Spline at the shifted points (clipped at 0) and normalization: ``(values, mass)``;
     ``values`` are divided by the mass when it is finite and positive."""
     out = spline_shift_2d(X, coords0, coords1, n0, n1)
     mass = _sum2(out, False) * cell
     if math.isfinite(mass) and mass > 0.0:
-        out /= mass
+        _scale2(out, 1.0 / mass)
     return out, mass
 
 
@@ -179,10 +189,11 @@ def terrain_exponent(xs, ys, C, tpar, ipar, z, var):
     (map as in :func:`bayes_terms`)."""
     h = terrain_depth(xs, ys, C, tpar[0], tpar[1], tpar[2], tpar[3], ipar[0], ipar[1],
                       ipar[2])
+    c = -0.5 / var  # one division, not one per point (round-off: 1 ulp of the exponent)
     for i in range(h.shape[0]):
         for j in range(h.shape[1]):
             e = h[i, j] - z
-            h[i, j] = -0.5 * (e * e) / var
+            h[i, j] = (e * e) * c
     tmax = _max2(h)
     h -= tmax
     return h, tmax
@@ -206,7 +217,7 @@ def grid_product_moments(values, lik, cell, xs, ys):
         m0[i] = _row_sum(post, i, False)
     Z = m0.sum() * cell
     if math.isfinite(Z) and Z > 0.0:
-        post /= Z
+        _scale2(post, 1.0 / Z)
         m0 /= Z
         m1 /= Z
         mean, cov = _moments2_marginals(post, m0, m1, xs, ys)

@@ -336,7 +336,7 @@ class PointMassFilter(Estimator):
     @axes.setter
     def axes(self, axes: list[np.ndarray]) -> None:
         self._axes = axes
-        spacing = [float(a[1] - a[0]) for a in axes]
+        spacing = [a.item(1) - a.item(0) for a in axes]
         self._spacing = np.array(spacing)
         self._cell = math.prod(spacing)
 
@@ -389,8 +389,8 @@ class PointMassFilter(Estimator):
         D = inc.D
         sp0, sp1 = self._spacing.tolist()
         n0, n1 = self.values.shape
-        p0 = max(int(math.ceil(7.0 * math.sqrt(max(D[0, 0], 0.0)) / sp0)) + 1, SPLINE_PAD)
-        p1 = max(int(math.ceil(7.0 * math.sqrt(max(D[1, 1], 0.0)) / sp1)) + 1, SPLINE_PAD)
+        p0 = max(int(math.ceil(7.0 * math.sqrt(max(D.item(0), 0.0)) / sp0)) + 1, SPLINE_PAD)
+        p1 = max(int(math.ceil(7.0 * math.sqrt(max(D.item(3), 0.0)) / sp1)) + 1, SPLINE_PAD)
         shape = (_fast_len(n0 + min(p0, n0)), _fast_len(n1 + min(p1, n1)))
         plan = self._plans.get(shape)  # per filter: filters in other threads have their own
         if plan is None:
@@ -496,9 +496,9 @@ class PointMassFilter(Estimator):
         self._set_estimate()
         d = self.diagnostics
         d["n_points"] = float(self.values.size)
-        for (klo, khi), a in zip(self._keys, self.axes, strict=True):
-            d[klo] = float(a[0])
-            d[khi] = float(a[-1])
+        for (klo, khi), a in zip(self._keys, self._axes, strict=True):
+            d[klo] = a.item(0)
+            d[khi] = a.item(-1)
 
     # ------------------------------------------------------------------------------------------
     @property

@@ -32,7 +32,7 @@ from scipy import ndimage, sparse
 
 from uwcosim.errors import FilterDivergence
 from uwcosim.filters.base import Estimator, register
-from uwcosim.filters.grid import projection_kernels as pk
+from uwcosim.filters.grid import projection_kernels as pk  # imports point_mass_kernels
 from uwcosim.filters.grid.conditional import (
     ConditionalKalman,
     assemble_estimate,
@@ -43,6 +43,9 @@ from uwcosim.filters.grid.likelihood import GridLikelihood
 from uwcosim.filters.grid.partition import Partition, symbolic
 from uwcosim.filters.grid.spectral import axes_moments
 from uwcosim.filters.numerics import symmetrize
+
+# isort: split
+from uwcosim.filters.grid import point_mass_kernels as pmk  # after projection_kernels
 
 try:  # scipy.fft's pocketfft binding: the transforms of rfft2/irfft2 without their dispatch
     from scipy.fft._pocketfft import pypocketfft as _pocketfft
@@ -487,7 +490,7 @@ class PointMassFilter(Estimator):
             else:
                 self.diagnostics["update_skipped"] = 1.0
         if self.fast:
-            self._mean, self._cov = pk.moments2(self.values, self.axes[0], self.axes[1])
+            self._mean, self._cov = pmk.pm_moments(self.values, self._axes[0], self._axes[1])
         else:
             self._mean, self._cov = axes_moments(self.axes, self.values)
         self._finish_update()

@@ -4,7 +4,8 @@ Part of :mod:`uwcosim.filters.projection_kernels` (same conventions, same lazy c
 filter reaches these kernels through that module): the prediction around the two FFTs
 (:func:`pm_grid_shift`, :func:`pm_gauss_prefilter`, :func:`pm_finish` with the spline shift
 :func:`spline_shift_2d`) and the Bayes product with the terrain likelihood
-(:func:`terrain_exponent`, :func:`grid_product_moments`).
+(:func:`terrain_exponent`, :func:`grid_product_moments`), or the moments alone
+(:func:`pm_moments`) when the update has no grid rows.
 """
 
 from __future__ import annotations
@@ -197,6 +198,22 @@ def terrain_exponent(xs, ys, C, tpar, ipar, z, var):
     tmax = _max2(h)
     h -= tmax
     return h, tmax
+
+
+@_jit
+def pm_moments(values, xs, ys):
+    """Mean and covariance of the grid density (as ``grid_moments.moments2``, which keeps one
+    running sum per row: a chain of dependent additions): the row sums and the covariance
+    term in the fixed order of ``_row_sum`` / ``_row_dot`` (the point-mass update without
+    grid rows, e.g. no terrain measurement)."""
+    Mx, My = values.shape
+    m0 = np.empty(Mx)
+    m1 = np.zeros(My)
+    for i in range(Mx):
+        for j in range(My):
+            m1[j] += values[i, j]
+        m0[i] = _row_sum(values, i, False)
+    return _moments2_marginals(values, m0, m1, xs, ys)
 
 
 @_jit

@@ -147,10 +147,10 @@ def pm_gauss_prefilter(X, L1, sp0, sp1, D, col, row):
         p0 = p1 = p2 = p3 = 1.0
         for j in range(N1):
             e = eb[j]
-            X[i, j] *= e0 * e * p0
-            X[i + 1, j] *= e1 * e * p1
-            X[i + 2, j] *= e2 * e * p2
-            X[i + 3, j] *= e3 * e * p3
+            _cscale(X, i, j, e0 * e * p0)
+            _cscale(X, i + 1, j, e1 * e * p1)
+            _cscale(X, i + 2, j, e2 * e * p2)
+            _cscale(X, i + 3, j, e3 * e * p3)
             p0 *= q0
             p1 *= q1
             p2 *= q2
@@ -159,8 +159,15 @@ def pm_gauss_prefilter(X, L1, sp0, sp1, D, col, row):
         e0, q0 = ea[i], qs[i]
         p0 = 1.0
         for j in range(N1):
-            X[i, j] *= e0 * eb[j] * p0
+            _cscale(X, i, j, e0 * eb[j] * p0)
             p0 *= q0
+
+
+@_jit
+def _cscale(X, i, j, g):
+    """``X[i, j] *= g`` for a real ``g``: two real products instead of a complex one."""
+    v = X[i, j]
+    X[i, j] = complex(v.real * g, v.imag * g)
 
 
 @_jit

@@ -146,3 +146,22 @@ def test_point_mass_tan_dvl_only_matches_kalman():
     np.testing.assert_allclose(pm.x[2:], kf.x[2:], atol=1e-6)
     assert np.linalg.norm(pm.x[:2] - kf.x[:2]) < 0.5
     np.testing.assert_allclose(np.diag(pm.P)[:2], np.diag(kf.P)[:2], rtol=2e-3)
+
+
+@pytest.mark.parametrize("shape", [(101, 101), (61, 45), (7, 9)])
+def test_point_mass_moment_kernel_matches_numpy(shape):
+    from uwcosim.filters.grid import point_mass_kernels as pmk
+    from uwcosim.filters.grid import projection_kernels as pk
+    from uwcosim.filters.grid.spectral import axes_moments
+
+    if not pk.ENABLED:
+        pytest.skip("compiled kernels (Numba) not available")
+    rng = np.random.default_rng(3)
+    axes = [np.linspace(-40.0, 25.0, shape[0]) + 3000.0, np.linspace(-9.0, 30.0, shape[1])]
+    values = rng.random(shape) * np.exp(-np.add.outer(np.linspace(-2, 2, shape[0]) ** 2,
+                                                      np.linspace(-1, 3, shape[1]) ** 2))
+    mean, cov = pmk.pm_moments(values, axes[0], axes[1])
+    ref_mean, ref_cov = axes_moments(axes, values)
+    np.testing.assert_allclose(mean, ref_mean, rtol=1e-13)
+    np.testing.assert_allclose(cov, ref_cov, rtol=1e-11)
+    assert cov[0, 1] == cov[1, 0]

@@ -32,7 +32,7 @@ from scipy import ndimage, sparse
 
 from uwcosim.errors import FilterDivergence
 from uwcosim.filters.base import Estimator, register
-from uwcosim.filters.grid import projection_kernels as pk
+from uwcosim.filters.grid import projection_kernels as pk  # imports point_mass_kernels
 from uwcosim.filters.grid.conditional import (
     ConditionalKalman,
     assemble_estimate,
@@ -41,8 +41,17 @@ from uwcosim.filters.grid.conditional import (
 )
 from uwcosim.filters.grid.likelihood import GridLikelihood
 from uwcosim.filters.grid.partition import Partition, symbolic
+from uwcosim.filters.grid.point_mass_fft import (
+    _fast_len,
+    _FFTPlan,
+    _inverse_bspline_factors,
+    _unit_frequencies,
+)
 from uwcosim.filters.grid.spectral import axes_moments
 from uwcosim.filters.numerics import symmetrize
+
+# isort: split
+from uwcosim.filters.grid import point_mass_kernels as pmk  # after projection_kernels
 
 _TAPS = np.arange(-1, 3)
 _POWERS = np.arange(4.0)
@@ -61,19 +70,6 @@ def hellinger(p: np.ndarray, q: np.ndarray) -> float:
     q = np.maximum(np.asarray(q, float), 0.0)
     bc = np.sum(np.sqrt(p * q)) / np.sqrt(p.sum() * q.sum())
     return float(np.sqrt(max(0.0, 1.0 - bc)))
-
-
-@lru_cache(maxsize=32)
-def _unit_frequencies(shape: tuple[int, ...]) -> tuple[np.ndarray, ...]:
-    """Angular frequencies of a real FFT of ``shape`` at unit spacing, broadcastable (cached)."""
-    n = len(shape)
-    out = []
-    for d in range(n):
-        f = sfft.rfftfreq(shape[d]) if d == n - 1 else sfft.fftfreq(shape[d])
-        s = [1] * n
-        s[d] = f.size
-        out.append((2.0 * np.pi * f).reshape(s))
-    return tuple(out)
 
 
 def gaussian_convolve(values: np.ndarray, spacing, D: np.ndarray) -> np.ndarray:
@@ -96,13 +92,6 @@ def gaussian_convolve(values: np.ndarray, spacing, D: np.ndarray) -> np.ndarray:
     X *= np.exp(-quad)
     out = sfft.irfftn(X, s=shape)
     return out[tuple(slice(0, values.shape[d]) for d in range(n))]
-
-
-@lru_cache(maxsize=32)
-def _inverse_bspline_factors(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """The 2-D :func:`_inverse_bspline_symbol` as its column and row factors."""
-    o0, o1 = _unit_frequencies(shape)
-    return 6.0 / (4.0 + 2.0 * np.cos(o0)), 6.0 / (4.0 + 2.0 * np.cos(o1))
 
 
 @lru_cache(maxsize=32)
@@ -272,7 +261,7 @@ class PointMassFilter(Estimator):
         #: compiled kernels (projection_kernels) for two gridded states when Numba is there;
         #: False runs the numpy code (same results to round-off)
         self.fast: bool = bool(pk.ENABLED and n == 2)
-        self._buffers: dict[tuple[int, int], np.ndarray] = {}  # zero-padded FFT inputs
+        self._plans: dict[tuple[int, int], _FFTPlan] = {}  # FFT work arrays per shape
         self.kalman.fast = self.fast
         self._var = [float(v) for v in np.diag(model.R)]
         self._set_estimate()
@@ -295,7 +284,7 @@ class PointMassFilter(Estimator):
     @axes.setter
     def axes(self, axes: list[np.ndarray]) -> None:
         self._axes = axes
-        spacing = [float(a[1] - a[0]) for a in axes]
+        spacing = [a.item(1) - a.item(0) for a in axes]
         self._spacing = np.array(spacing)
         self._cell = math.prod(spacing)
 
@@ -348,22 +337,20 @@ class PointMassFilter(Estimator):
         D = inc.D
         sp0, sp1 = self._spacing.tolist()
         n0, n1 = self.values.shape
-        p0 = max(int(math.ceil(7.0 * math.sqrt(max(D[0, 0], 0.0)) / sp0)) + 1, SPLINE_PAD)
-        p1 = max(int(math.ceil(7.0 * math.sqrt(max(D[1, 1], 0.0)) / sp1)) + 1, SPLINE_PAD)
-        shape = (sfft.next_fast_len(n0 + min(p0, n0), real=True),
-                 sfft.next_fast_len(n1 + min(p1, n1), real=True))
-        buf = self._buffers.get(shape)  # per filter: filters in other threads have their own
-        if buf is None:
-            if len(self._buffers) > 8:
-                self._buffers.clear()
-            buf = self._buffers[shape] = np.empty(shape)
+        p0 = max(int(math.ceil(7.0 * math.sqrt(max(D.item(0), 0.0)) / sp0)) + 1, SPLINE_PAD)
+        p1 = max(int(math.ceil(7.0 * math.sqrt(max(D.item(3), 0.0)) / sp1)) + 1, SPLINE_PAD)
+        shape = (_fast_len(n0 + min(p0, n0)), _fast_len(n1 + min(p1, n1)))
+        plan = self._plans.get(shape)  # per filter: filters in other threads have their own
+        if plan is None:
+            if len(self._plans) > 8:
+                self._plans.clear()
+            plan = self._plans[shape] = _FFTPlan(shape)
         new0, new1, c0, c1, mean, cov = pk.pm_grid_shift(
             self.values, self._axes[0], self._axes[1], self._mean, self._cov, inc.d, D,
-            self.span, self._unit[0], self._unit[1], buf)
-        X = sfft.rfft2(buf)
-        col, row = _inverse_bspline_factors(shape)
-        pk.pm_gauss_prefilter(X, shape[1], sp0, sp1, D, col, row)
-        out = sfft.irfft2(X, s=shape)
+            self.span, self._unit[0], self._unit[1], plan.buf)
+        X = plan.forward()
+        pk.pm_gauss_prefilter(X, shape[1], sp0, sp1, D, plan.col, plan.row)
+        out = plan.inverse()
         self.axes = [new0, new1]
         self.values, mass = pk.pm_finish(out, c0, c1, n0, n1, self._cell)
         if not (math.isfinite(mass) and mass > 0):
@@ -448,7 +435,7 @@ class PointMassFilter(Estimator):
             else:
                 self.diagnostics["update_skipped"] = 1.0
         if self.fast:
-            self._mean, self._cov = pk.moments2(self.values, self.axes[0], self.axes[1])
+            self._mean, self._cov = pmk.pm_moments(self.values, self._axes[0], self._axes[1])
         else:
             self._mean, self._cov = axes_moments(self.axes, self.values)
         self._finish_update()
@@ -457,9 +444,9 @@ class PointMassFilter(Estimator):
         self._set_estimate()
         d = self.diagnostics
         d["n_points"] = float(self.values.size)
-        for (klo, khi), a in zip(self._keys, self.axes, strict=True):
-            d[klo] = float(a[0])
-            d[khi] = float(a[-1])
+        for (klo, khi), a in zip(self._keys, self._axes, strict=True):
+            d[klo] = a.item(0)
+            d[khi] = a.item(-1)
 
     # ------------------------------------------------------------------------------------------
     @property

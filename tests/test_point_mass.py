@@ -165,3 +165,21 @@ def test_point_mass_moment_kernel_matches_numpy(shape):
     np.testing.assert_allclose(mean, ref_mean, rtol=1e-13)
     np.testing.assert_allclose(cov, ref_cov, rtol=1e-11)
     assert cov[0, 1] == cov[1, 0]
+
+
+def test_fft_plan_private_binding_and_public_fallback_agree(monkeypatch):
+    """The point mass's FFTs through scipy's pocketfft binding and through the public
+    scipy.fft functions (the fallback when the private binding is missing): the same bits."""
+    from uwcosim.filters.grid import point_mass_fft as pf
+
+    rng = np.random.default_rng(5)
+    data = rng.random((108, 120))
+    out = []
+    for binding in (pf._pocketfft, None):
+        monkeypatch.setattr(pf, "_pocketfft", binding)
+        plan = pf._FFTPlan((108, 120))
+        plan.buf[:] = data
+        spec = plan.forward().copy()
+        out.append((spec, plan.inverse().copy()))
+    assert np.array_equal(out[0][0], out[1][0]) and np.array_equal(out[0][1], out[1][1])
+    np.testing.assert_allclose(out[0][1], data, rtol=0, atol=1e-12)

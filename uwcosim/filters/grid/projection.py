@@ -283,6 +283,8 @@ class ProjectionFilter(BayesProduct, Estimator):
 
     def update(self, z, mask=None) -> None:
         z, rows_k, rows_g = begin_update(self, z, mask)
+        if self.fast and self._update_fast(z, rows_g):
+            return
         diag = self.diagnostics
         prior, prior_basis = self.m, self.basis
         post, mean, cov, ok = self._bayes(self.basis, z, rows_g, record=True)
@@ -364,6 +366,56 @@ class ProjectionFilter(BayesProduct, Estimator):
         self._mean, self._cov = mean, cov
         self._set_estimate()
         self._report()
+
+    def _update_fast(self, z, rows_g) -> bool:
+        """The common updates in one or two compiled calls: no grid row (the posterior is the
+        prior: :func:`~uwcosim.filters.grid.projection_kalman.prior_step`), or one terrain row
+        whose posterior passes the gate and needs neither a finer box nor a positivity repair
+        (:func:`~uwcosim.filters.grid.projection_kalman.bayes_step`). Returns False, having
+        changed nothing, in every other case: :meth:`update` then runs its general path, which
+        computes the same quantities (to round-off) and handles the case."""
+        basis, kal, diag = self.basis, self.kalman, self.diagnostics
+        tb = pk.tables(self.K, basis.M)
+        limit = self.neg_limit if self.positivity == "auto" else math.inf
+        if not rows_g:
+            ok, neg, mean, cov, x, P, finite = pk.prior_step(
+                self.m, tb[0], tb[1], basis.lo, basis.length, limit, self.x.size, kal._p_arr,
+                kal._k_arr, kal.mean, kal.cov)
+            if not ok:
+                return False
+            diag["neg_mass_prior"] = neg
+        else:
+            if len(rows_g) != 1:
+                return False
+            r = rows_g[0]
+            tg = self.likelihood.terrain_rows.get(r)
+            if tg is None:
+                return False
+            values, E, V, neg_prior, tmax, vmin = pk.bayes_terms(
+                self.m, tb[0], tb[1], basis.lo, basis.length, tg.t.coefficients, tg.tpar,
+                tg.ipar, float(z[r]), self._var[r], self.resolution_inflation)
+            np.exp(E, out=E)
+            shift = tmax - 0.5 * math.log(vmin) if self.resolution_inflation else tmax
+            thr = self._gate_threshold(rows_g) if self.gate else -math.inf
+            code, loglik, m, neg, mean, cov, x, P, finite = pk.bayes_step(
+                values, E, V, vmin, basis.lo, basis.length, shift, thr, self.refine,
+                self.k_sigma, self.min_halfwidth, tb[2], tb[3], tb[0], tb[1], limit,
+                self.x.size, kal._p_arr, kal._k_arr, kal.mean, kal.cov)
+            if code:
+                return False
+            self.m = m
+            diag["neg_mass_prior"] = neg_prior
+            diag["loglik"] = loglik
+        diag["neg_mass"] = neg
+        if self.positivity == "auto":
+            diag["positivity_applied"] = 0.0
+        self._mean, self._cov = mean, cov
+        if not finite:
+            self.diverged = True
+            raise FilterDivergence(f"{self.kind}: non-finite estimate")
+        self.x, self.P = x, P
+        self._report()
+        return True
 
     def _report(self) -> None:
         d = self.diagnostics

@@ -87,6 +87,7 @@ from uwcosim.filters.grid.projection_bayes import BayesProduct
 from uwcosim.filters.numerics import symmetrize
 
 POSITIVITY = ("auto", "none", "threshold", "clip", "product", "jackson")
+_NO_Z = np.zeros(0)  # the measurement vector of an update without measurements
 DENSE_EXPM_MAX = 1200  # basis size up to which exp(A dt) is formed densely
 @register("pfm_psi")
 class ProjectionFilter(BayesProduct, Estimator):
@@ -159,6 +160,10 @@ class ProjectionFilter(BayesProduct, Estimator):
         self.fast: bool = bool(pk.ENABLED and self.basis.n == 2 and positivity in ("auto", "none")
                          and spectral_filter == 0)
         self.kalman.fast = self.fast
+        kal = self.kalman
+        nk = len(self.part.k)
+        self._kal_args = ((kal.H, kal._R, kal.c) if kal.rows and nk else
+                          (np.zeros((0, nk)), np.zeros((0, 0)), np.zeros(0)))
         self._set_estimate()
 
     # ------------------------------------------------------------------------------------------
@@ -282,6 +287,8 @@ class ProjectionFilter(BayesProduct, Estimator):
         self._set_estimate()
 
     def update(self, z, mask=None) -> None:
+        if self.fast and self._update_fast(z, mask):
+            return
         z, rows_k, rows_g = begin_update(self, z, mask)
         diag = self.diagnostics
         prior, prior_basis = self.m, self.basis
@@ -364,6 +371,80 @@ class ProjectionFilter(BayesProduct, Estimator):
         self._mean, self._cov = mean, cov
         self._set_estimate()
         self._report()
+
+    def _update_fast(self, z, mask) -> bool:
+        """The common updates in one or two compiled calls, the Kalman update of the
+        velocities included: no grid row (the posterior is the prior:
+        :func:`~uwcosim.filters.grid.projection_kalman.prior_step`), or one terrain row whose
+        posterior passes the gate and needs neither a finer box nor a positivity repair
+        (:func:`~uwcosim.filters.grid.projection_kalman.bayes_step`). Returns False, having
+        changed nothing, in every other case: :meth:`update` then runs its general path, which
+        computes the same quantities (to round-off) and handles the case."""
+        z, rows_k, rows_g = self.part.split_rows(z, mask, self.model.nz)
+        basis, kal = self.basis, self.kalman
+        active = bool(rows_k) and bool(kal.k)
+        if active and rows_k != kal.rows:
+            return False
+        H, R, c = self._kal_args
+        zz = _NO_Z if z is None else z
+        tb = pk.tables(self.K, basis.M)
+        limit = self.neg_limit if self.positivity == "auto" else math.inf
+        if not rows_g:
+            ok, neg, mean, cov, x, P, finite, km, kc, phi, nis = pk.prior_step(
+                self.m, tb[0], tb[1], basis.lo, basis.length, limit, self.x.size, kal._p_arr,
+                kal._k_arr, kal.mean, kal.cov, H, R, c, zz, kal._rows_idx, kal._F, active)
+            if not ok:
+                return False
+            diag = self._fresh_diagnostics(active, km, kc, phi, nis, len(rows_k))
+            diag["neg_mass_prior"] = neg
+        else:
+            if len(rows_g) != 1:
+                return False
+            r = rows_g[0]
+            tg = self.likelihood.terrain_rows.get(r)
+            if tg is None:
+                return False
+            values, E, V, neg_prior, tmax, vmin = pk.bayes_terms(
+                self.m, tb[0], tb[1], basis.lo, basis.length, tg.t.coefficients, tg.tpar,
+                tg.ipar, float(z[r]), self._var[r], self.resolution_inflation)
+            np.exp(E, out=E)
+            shift = tmax - 0.5 * math.log(vmin) if self.resolution_inflation else tmax
+            thr = self._gate_threshold(rows_g) if self.gate else -math.inf
+            code, loglik, m, neg, mean, cov, x, P, finite, km, kc, phi, nis = pk.bayes_step(
+                values, E, V, vmin, basis.lo, basis.length, shift, thr, self.refine,
+                self.k_sigma, self.min_halfwidth, tb[2], tb[3], tb[0], tb[1], limit,
+                self.x.size, kal._p_arr, kal._k_arr, kal.mean, kal.cov, H, R, c, zz,
+                kal._rows_idx, kal._F, active)
+            if code:
+                return False
+            self.m = m
+            diag = self._fresh_diagnostics(active, km, kc, phi, nis, len(rows_k))
+            diag["neg_mass_prior"] = neg_prior
+            diag["loglik"] = loglik
+        diag["neg_mass"] = neg
+        if self.positivity == "auto":
+            diag["positivity_applied"] = 0.0
+        self._mean, self._cov = mean, cov
+        if not finite:
+            self.diverged = True
+            raise FilterDivergence(f"{self.kind}: non-finite estimate")
+        self.x, self.P = x, P
+        self._report()
+        return True
+
+    def _fresh_diagnostics(self, active, km, kc, phi, nis, n_rows) -> dict:
+        """:func:`begin_update`'s bookkeeping after a fused update: fresh diagnostics (unless
+        a prediction just wrote them) and the Kalman block's new state and NIS."""
+        if self._after_update:
+            self.diagnostics = {}
+        self._after_update = True
+        diag = self.diagnostics
+        if active:
+            kal = self.kalman
+            kal.mean, kal.cov, kal._phi = km, kc, phi
+            diag["nis"] = nis
+            diag["nis_dof"] = float(n_rows)
+        return diag
 
     def _report(self) -> None:
         d = self.diagnostics

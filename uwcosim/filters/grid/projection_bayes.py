@@ -85,6 +85,12 @@ class BayesProduct:
         """
         if not self.gate:
             return True
+        ll = self.diagnostics.get("loglik")
+        return ll is not None and ll >= self._gate_threshold(rows_g)
+
+    def _gate_threshold(self, rows_g) -> float:
+        """The least plausible ``loglik`` of :meth:`_consistent` for the rows ``rows_g``
+        (cached per set of rows)."""
         key = tuple(rows_g)
         thr = self._gate_ll.get(key)
         if thr is None:
@@ -94,8 +100,7 @@ class BayesProduct:
             if self.resolution_inflation:  # loglik then includes -log det(R + inflation) / 2
                 thr -= 0.5 * float(np.linalg.slogdet(self.model.R[np.ix_(key, key)])[1])
             self._gate_ll[key] = thr
-        ll = self.diagnostics.get("loglik")
-        return ll is not None and ll >= thr
+        return thr
 
     def _positive(self, values: np.ndarray, mode: str | None = None) -> np.ndarray:
         """Remove the truncation's negative lobes from grid values.

@@ -4,8 +4,10 @@ Part of :mod:`uwcosim.filters.projection_kernels` (same conventions, same lazy c
 filters reach these kernels through that module): the exact re-projection of the series onto a
 moved box with the Gaussian decay (:func:`shift_decay`, :func:`predict_shift`), the conditional
 Kalman filter of the velocities (:func:`kalman_increment`, :func:`kalman_update`), the assembly
-of ``(x, P)`` (:func:`assemble`) and the fused per-step calls :func:`predict_step` and
-:func:`posterior_step`. Small matrices are multiplied by loops (cheaper than a BLAS call).
+of ``(x, P)`` (:func:`assemble`) and the fused per-step calls :func:`predict_step`,
+:func:`posterior_step` and, for the common updates, :func:`bayes_step` (a terrain row) and
+:func:`prior_step` (no grid row). Small matrices are multiplied by loops (cheaper than a BLAS
+call).
 """
 
 from __future__ import annotations
@@ -14,13 +16,16 @@ import math
 
 import numpy as np
 
-from uwcosim.filters.grid.jit import _jit
+from uwcosim.filters.grid.jit import _jit, _row_sum
 from uwcosim.filters.grid.projection_kernels import (
     TWO_PI,
+    _posterior_moments,
     _sym,
+    bayes_posterior,
     box,
     hermitian_normalize,
     posterior_coefficients,
+    prior_values,
 )
 
 # ---------------------------------------------------------------------------------------------
@@ -354,3 +359,82 @@ def posterior_step(post, Tg, Tm, Tq, Tx, length, neg_limit, nx, p, k, mean, cov,
     else:
         x, P, finite = np.zeros(nx), np.zeros((nx, nx)), False
     return m, values, neg, mass, x, P, finite
+
+
+@_jit
+def bayes_step(values, E, S, vmin, lo, length, shift, thr, refine, k_sigma, min_halfwidth, Tg,
+               Tm, Tq, Tx, neg_limit, nx, p, k, kmean, kcov, H, R, c, z, rows, F, active):
+    """The common ``ProjectionFilter.update`` with one terrain row, after :func:`bayes_terms`
+    and the exponential: :func:`bayes_posterior`, the log-likelihood ``log(Z) + shift``, the
+    gate (``loglik >= thr``), the refinement test (the posterior box narrower than ``refine``
+    times the prior box on some axis) and :func:`posterior_step` in one call.
+
+    First the Kalman update of the velocities (:func:`kalman_step`, arguments ``kmean`` to
+    ``active``). Returns ``(code, loglik, m, neg, mean, cov, x, P, finite, kmean, kcov, phi,
+    nis)``; ``code`` 0: done (``m``
+    Hermitian and normalized, no repair needed); 1: any other case (no posterior mass,
+    non-finite moments, gate failed, refinement, positivity repair, failed Kalman update),
+    which the caller runs on its general path. The arithmetic is that of the separate
+    kernels, in the same order."""
+    km, kc, phi, nis, ok = kalman_step(kmean, kcov, H, R, c, z, rows, F, active)
+    no = np.zeros((1, 1), np.complex128)
+    X, Pz = np.zeros(nx), np.zeros((nx, nx))
+    if not ok:
+        return 1, np.nan, no, np.nan, np.zeros(2), np.zeros((2, 2)), X, Pz, False, km, kc, phi, nis
+    post, Z, mean, cov, status = bayes_posterior(values, E, S, vmin, lo, length)
+    if status == 1 or status == 3:
+        return 1, np.nan, no, np.nan, mean, cov, X, Pz, False, km, kc, phi, nis
+    loglik = math.log(Z) + shift
+    if not loglik >= thr:
+        return 1, loglik, no, np.nan, mean, cov, X, Pz, False, km, kc, phi, nis
+    if refine < 1.0:
+        _, len2 = box(mean, cov, k_sigma, min_halfwidth)
+        if len2[0] < refine * length[0] or len2[1] < refine * length[1]:
+            return 1, loglik, no, np.nan, mean, cov, X, Pz, False, km, kc, phi, nis
+    m, _, neg, mass = posterior_coefficients(post, Tg, Tm, Tq, Tx, length, neg_limit)
+    if not (math.isfinite(mass) and mass > 0.0):
+        return 1, loglik, no, neg, mean, cov, X, Pz, False, km, kc, phi, nis
+    x, P, finite = assemble(nx, p, k, mean, cov, km, kc)
+    return 0, loglik, m, neg, mean, cov, x, P, finite, km, kc, phi, nis
+
+
+@_jit
+def kalman_step(kmean, kcov, H, R, c, z, rows, F, active):
+    """:func:`kalman_update` of the velocities with the rows ``rows`` of ``z`` when ``active``
+    (else the block unchanged): ``(mean, cov, phi, nis, ok)``."""
+    if not active:
+        return kmean, kcov, F, 0.0, True
+    zk = np.empty(rows.size)
+    for a in range(rows.size):
+        zk[a] = z[rows[a]]
+    return kalman_update(kmean, kcov, H, R, c, zk, F)
+
+
+@_jit
+def prior_step(m, Tq, Tx, lo, length, neg_limit, nx, p, k, kmean, kcov, H, R, c, z, rows, F,
+               active):
+    """``ProjectionFilter.update`` without a grid measurement row: the posterior is the prior.
+
+    The prior's grid values and negative mass (:func:`prior_values`), their moments (those of
+    :func:`bayes_posterior` with unit factors, bit for bit: the factors multiply by exactly 1)
+    and ``(x, P)``, after the Kalman update of the velocities (:func:`kalman_step`). The
+    series is kept as it is: the general path re-projects the grid values
+    onto the basis, which gives the (Hermitian, normalized) series back to round-off, and
+    recomputes the same grid values. Returns ``(ok, neg, mean, cov, x, P, finite, kmean, kcov,
+    phi, nis)``; ``ok`` False (the caller runs its general path) when the Kalman update
+    fails, the values have no positive mass, their moments are not finite, or
+    ``neg > neg_limit`` (a positivity repair follows)."""
+    km, kc, phi, nis, ok = kalman_step(kmean, kcov, H, R, c, z, rows, F, active)
+    M = Tx.shape[1]
+    values, neg = prior_values(m, Tq, Tx, length)
+    m0 = np.empty(M)
+    m1 = np.zeros(M)
+    for i in range(M):
+        for j in range(M):
+            m1[j] += values[i, j]
+        m0[i] = _row_sum(values, i, False)
+    _, mean, cov, status = _posterior_moments(values, m0, m1, lo, length)
+    if not ok or status != 0 or not neg <= neg_limit:
+        return False, neg, mean, cov, np.zeros(nx), np.zeros((nx, nx)), False, km, kc, phi, nis
+    x, P, finite = assemble(nx, p, k, mean, cov, km, kc)
+    return True, neg, mean, cov, x, P, finite, km, kc, phi, nis

@@ -342,9 +342,8 @@ def bayes_posterior(values, E, S, vmin, lo, length):
     at ``(L/M)^2/12``).
     """
     M = values.shape[0]
-    cell = (length[0] / M) * (length[1] / M)
     post = np.empty((M, M))
-    m0 = np.zeros(M)
+    m0 = np.empty(M)
     m1 = np.zeros(M)
     svm = math.sqrt(vmin)
     for i in range(M):
@@ -353,6 +352,17 @@ def bayes_posterior(values, E, S, vmin, lo, length):
             post[i, j] = p
             m1[j] += p
         m0[i] = _row_sum(post, i, False)
+    Z, mean, cov, status = _posterior_moments(post, m0, m1, lo, length)
+    return post, Z, mean, cov, status
+
+
+@_jit
+def _posterior_moments(post, m0, m1, lo, length):
+    """Mass and moments of :func:`bayes_posterior` from the marginal sums ``m0`` (rows, in
+    :func:`_row_sum` order) and ``m1`` (columns, added row after row) of ``post``; clips
+    ``post`` in place when its mass is not positive. Returns ``(Z, mean, cov, status)``."""
+    M = post.shape[0]
+    cell = (length[0] / M) * (length[1] / M)
     Z = m0.sum() * cell
     status = 0
     xs, ys = grid_axes(lo, length, M)
@@ -369,12 +379,12 @@ def bayes_posterior(values, E, S, vmin, lo, length):
         Z = s * cell
         status = 2
         if not (math.isfinite(Z) and Z > 0.0):
-            return post, Z, np.zeros(2), np.zeros((2, 2)), 1
+            return Z, np.zeros(2), np.zeros((2, 2)), 1
         mean, cov = _moments2(post, xs, ys, False)
     mean, cov = _floor_moments(post, xs, ys, mean, cov, floor0, floor1)
     if not math.isfinite(mean.sum() + cov.sum()):
         status = 3
-    return post, Z, mean, cov, status
+    return Z, mean, cov, status
 
 
 @_jit_fast
@@ -451,19 +461,23 @@ from uwcosim.filters.grid.point_mass_kernels import (  # noqa: E402
 from uwcosim.filters.grid.projection_kalman import (  # noqa: E402
     assemble,
     available_bits,
+    bayes_step,
     kalman_increment,
     kalman_update,
     posterior_step,
     predict_shift,
     predict_step,
+    prior_step,
     shift_decay,
 )
 
 __all__ = [
-    "ENABLED", "assemble", "available_bits", "bayes_posterior", "bayes_terms", "box",
+    "ENABLED", "assemble", "available_bits", "bayes_posterior", "bayes_step", "bayes_terms",
+    "box",
     "from_grid2", "grid_moments2", "grid_product_moments", "hermitian_normalize", "interrupted",
     "kalman_increment", "kalman_update", "moments2", "pm_finish", "pm_gauss_prefilter",
     "pm_grid_shift", "posterior_coefficients", "posterior_step", "predict_shift",
-    "predict_step", "prior_values", "shift_decay", "spline_shift_2d", "tables", "terrain_depth",
+    "predict_step", "prior_step", "prior_values", "shift_decay", "spline_shift_2d", "tables",
+    "terrain_depth",
     "terrain_exponent", "to_grid2",
 ]

@@ -147,6 +147,19 @@ def simulation_record(master: Master, bank: EstimatorBank | None, loaded: Loaded
     return rec
 
 
+def _flush_steps(bank, recorder) -> None:
+    """At the end of a run that stopped early (interrupted, failed): filter the steps the bank
+    recorded and write their rows (with NaN estimates if filtering them fails too)."""
+    if recorder is None:
+        return
+    if bank is not None:
+        try:
+            bank.flush()
+        except BaseException:  # noqa: BLE001 - the run already failed: keep the truth rows
+            bank.outputs.clear()
+    recorder.flush()
+
+
 def _as_loaded(scenario: LoadedScenario | str | Path) -> LoadedScenario:
     if isinstance(scenario, LoadedScenario):
         return scenario
@@ -205,7 +218,7 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
     else:
         master.reset(seed)
     log_path = out_dir / "log.parquet"
-    logger = None
+    logger = hook = None
     failure: UwcosimError | None = None
     bank = model = snapshots = None
     completed = False
@@ -237,6 +250,12 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
             message = f"interrupted at t={last_time():g} by {message.rsplit(' ', 1)[-1]}"
         message = kept(message)
         if logger is not None:
+            # the steps the bank has not filtered yet: the main thread is stuck in an FMU
+            # call, not in the bank (if it is, their rows are written with NaN estimates)
+            if bank is not None and bank.busy:
+                hook.flush()
+            else:
+                _flush_steps(bank, hook)
             logger.close()
         try:
             finish(status, message)
@@ -254,7 +273,10 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
             if spec.estimators:
                 model = build_model(loaded, bathy)
                 bank = EstimatorBank(master, model, str(loaded.path),
-                                     bathy.extent if bathy is not None else None)
+                                     bathy.extent if bathy is not None else None,
+                                     block=spec.run.filter_block,
+                                     sync_times=spec.output.density_snapshots,
+                                     row_group=spec.log.chunk_steps)
                 master.hooks.append(bank)
             cols, slots, flags = log_columns(master, bank, model)
             meta = {
@@ -293,23 +315,30 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
             master.hooks.append(guard.check)  # after the log row of the step
             guard.check()
             master.run_until(master.t0 + master.n_steps * master.h)
+            if bank is not None:  # the last block
+                bank.flush()
+                hook.flush()
             stop = master.terminated
             if stop is not None and stop.time > master.t + 1e-9 * master.h:
                 hook.final(master, stop.time)
             completed = True
         except (KeyboardInterrupt, RunInterrupted):
+            _flush_steps(bank, hook)  # the message names the last row written
             failure = RunInterrupted(f"interrupted at t={last_time():g}")
         except UwcosimError as exc:
             failure = exc
         finally:
             if not guard.claim():  # the watcher is finalizing and ends the process
                 guard.wait_for_exit()
+            if logger is not None and failure is not None:
+                _flush_steps(bank, hook)
             if guard.signum is not None and failure is not None:
                 failure = RunInterrupted(f"interrupted at t={last_time():g} by "
                                          f"{signal_name(guard.signum)}")
                 failure.exit_code = guard.exit_code()
             try:
                 if logger is not None:
+                    _flush_steps(bank, hook)  # (an unexpected error: what was recorded)
                     logger.close()
             finally:
                 try:

@@ -1,5 +1,9 @@
 """What a run logs, one row per step: a master hook between the run and its :class:`RunLogger`.
 
+With estimators, a step's row waits until the estimator bank has filtered the block the step
+belongs to (:mod:`uwcosim.estimator_bank`); :meth:`LogRecorder.flush` writes what waits at the
+end of a run.
+
 Columns: ``time``, the logged signals (``[log] signals`` globs, plus the model's truth signals
 when there are estimators), and, with estimators, the measurements ``z.NAME`` (NaN when not
 received; flags ``z.NAME.received``) from the master's
@@ -10,6 +14,7 @@ variance ``est.E.var.STATE``, ``est.E.nis``, ``est.E.nees`` (flag ``est.E.diverg
 from __future__ import annotations
 
 import fnmatch
+from collections import deque
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -65,33 +70,52 @@ class LogRecorder:
         self.width = 1 + len(signal_slots)
         if bank:
             self.width += len(master.sensors.names) + len(bank.tracks) * (2 * model.nx + 2)
-        self.row = np.empty(self.width)
         self.n_flags = len(logger.bool_columns)
+        self._first = True
+        self._pending: deque = deque()  # rows waiting for the bank's estimates
 
     def __call__(self, master: Master) -> None:
-        row = self.row
+        row = np.empty(self.width)
         row[0] = master.t
         i = 1 + len(self.sig)
         row[1:i] = master.bus[self.sig]
-        flags = []
-        if self.bank:
-            meas = master.measurement()
-            row[i:i + meas.z.size] = meas.z
-            i += meas.z.size
-            flags = [bool(r) for r in meas.received]
-            nx = self.model.nx
-            for tr in self.bank.tracks:
-                if tr.diverged_at is None:
-                    row[i:i + nx] = tr.estimator.x
-                    row[i + nx:i + 2 * nx] = np.diag(tr.estimator.P)
-                    row[i + 2 * nx] = tr.estimator.diagnostics.get("nis", np.nan)
-                    row[i + 2 * nx + 1] = tr.nees
-                else:
-                    row[i:i + 2 * nx + 2] = np.nan
-                i += 2 * nx + 2
-            flags += [tr.diverged_at is not None for tr in self.bank.tracks]
-        self.logger.append(row, np.array(flags, dtype=bool),
-                           [master.native.get(s) for s in self.exact])
+        exact = [master.native.get(s) for s in self.exact]
+        if not self.bank:
+            self.logger.append(row, np.zeros(0, dtype=bool), exact)
+            return
+        meas = master.measurement()
+        row[i:i + meas.z.size] = meas.z
+        received = [bool(r) for r in meas.received]
+        if self._first:  # the start time: the estimators' initial state, before any step
+            self._first = False
+            self._append(row, received, exact, self.bank.current())
+            return
+        self._pending.append((row, received, exact))
+        self._drain()
+
+    def _append(self, row, received, exact, estimates) -> None:
+        values, diverged = estimates
+        row[self.width - values.size:] = values
+        self.logger.append(row, np.array(received + diverged, dtype=bool), exact)
+
+    def _drain(self) -> None:
+        """Write the rows whose estimates the bank has filtered (it runs in blocks)."""
+        outputs = self.bank.outputs
+        while self._pending and outputs:
+            row, received, exact = self._pending.popleft()
+            self._append(row, received, exact, outputs.popleft())
+
+    def flush(self) -> None:
+        """Write every row still waiting: with its estimates when the bank has them, else
+        with NaN estimates (a run that ended inside a block the bank did not filter)."""
+        if not self.bank:
+            return
+        self._drain()
+        n = len(self.bank.tracks) * (2 * self.model.nx + 2)
+        while self._pending:
+            row, received, exact = self._pending.popleft()
+            self._append(row, received, exact,
+                         (np.full(n, np.nan), [False] * len(self.bank.tracks)))
 
     def final(self, master: Master, t: float) -> None:
         """The last row of a run an FMU stopped between two communication points: the signals

@@ -56,6 +56,10 @@ class RunSpec(Strict):
     stop_on_terminate: Literal["stop", "error"] = "stop"
     #: run-wide watchdog (s): an FMU call lasting longer ends the run (failed, log kept)
     fmu_timeout_s: PositiveFloat | None = None
+    #: the estimators run over blocks of this many steps, one after the other, after the
+    #: co-simulation computed them (faster: their data stay in the CPU caches); the results
+    #: do not depend on it; 1 = every estimator at every step
+    filter_block: PositiveInt = 64
 
     @model_validator(mode="after")
     def _steps(self) -> RunSpec:

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from uwcosim.filters.grid.jit import _jit, _row_dot
+from uwcosim.filters.grid.jit import _jit, _row_dot, _row_sum
 
 
 @_jit
@@ -76,6 +76,20 @@ def grid_moments2(post, xs, ys, floor0, floor1):
     """:meth:`ProjectionFilter._grid_moments` for two gridded states."""
     mean, cov = _moments2(post, xs, ys, False)
     return _floor_moments(post, xs, ys, mean, cov, floor0, floor1)
+
+
+@_jit
+def _marginals2(values):
+    """Row sums ``m0`` (fixed order of ``_row_sum``) and column sums ``m1`` (row after row) of
+    a 2-D grid: the marginals :func:`_moments2_marginals` takes."""
+    M0, M1 = values.shape
+    m0 = np.empty(M0)
+    m1 = np.zeros(M1)
+    for i in range(M0):
+        for j in range(M1):
+            m1[j] += values[i, j]
+        m0[i] = _row_sum(values, i, False)
+    return m0, m1
 
 
 @_jit

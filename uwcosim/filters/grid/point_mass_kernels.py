@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from uwcosim.filters.grid.grid_moments import _moments2, _moments2_marginals
+from uwcosim.filters.grid.grid_moments import _marginals2, _moments2, _moments2_marginals
 from uwcosim.filters.grid.jit import _jit, _jit_fast, _max2, _row_sum, _sum2
 from uwcosim.filters.grid.projection_kernels import TWO_PI, _sym, terrain_depth
 
@@ -213,13 +213,7 @@ def pm_moments(values, xs, ys):
     running sum per row: a chain of dependent additions): the row sums and the covariance
     term in the fixed order of ``_row_sum`` / ``_row_dot`` (the point-mass update without
     grid rows, e.g. no terrain measurement)."""
-    Mx, My = values.shape
-    m0 = np.empty(Mx)
-    m1 = np.zeros(My)
-    for i in range(Mx):
-        for j in range(My):
-            m1[j] += values[i, j]
-        m0[i] = _row_sum(values, i, False)
+    m0, m1 = _marginals2(values)
     return _moments2_marginals(values, m0, m1, xs, ys)
 
 

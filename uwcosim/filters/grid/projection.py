@@ -329,15 +329,7 @@ class ProjectionFilter(BayesProduct, Estimator):
                 post, tb[2], tb[3], tb[0], tb[1], self.basis.length, limit, self.x.size,
                 kal._p_arr, kal._k_arr, mean, cov, kal.mean, kal.cov)
             if math.isfinite(mass) and mass > 0:  # no repair: normalized by the kernel
-                diag["neg_mass"] = neg
-                if self.positivity == "auto":
-                    diag["positivity_applied"] = 0.0
-                self._mean, self._cov = mean, cov
-                if not finite:
-                    self.diverged = True
-                    raise FilterDivergence(f"{self.kind}: non-finite estimate")
-                self.x, self.P = x, P
-                self._report()
+                self._accept(diag, neg, mean, cov, x, P, finite)
                 return
         else:
             self.m = po.from_grid(post, self.basis)  # eqs. 45, 47
@@ -421,6 +413,12 @@ class ProjectionFilter(BayesProduct, Estimator):
             diag = self._fresh_diagnostics(active, km, kc, phi, nis, len(rows_k))
             diag["neg_mass_prior"] = neg_prior
             diag["loglik"] = loglik
+        self._accept(diag, neg, mean, cov, x, P, finite)
+        return True
+
+    def _accept(self, diag: dict, neg: float, mean, cov, x, P, finite: bool) -> None:
+        """Take a compiled update's result: the gridded block's moments, the estimate ``(x,
+        P)`` (FilterDivergence if not finite) and the diagnostics (no positivity repair)."""
         diag["neg_mass"] = neg
         if self.positivity == "auto":
             diag["positivity_applied"] = 0.0
@@ -430,7 +428,6 @@ class ProjectionFilter(BayesProduct, Estimator):
             raise FilterDivergence(f"{self.kind}: non-finite estimate")
         self.x, self.P = x, P
         self._report()
-        return True
 
     def _fresh_diagnostics(self, active, km, kc, phi, nis, n_rows) -> dict:
         """:func:`begin_update`'s bookkeeping after a fused update: fresh diagnostics (unless

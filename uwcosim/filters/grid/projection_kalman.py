@@ -16,7 +16,8 @@ import math
 
 import numpy as np
 
-from uwcosim.filters.grid.jit import _jit, _row_sum
+from uwcosim.filters.grid.grid_moments import _marginals2
+from uwcosim.filters.grid.jit import _jit
 from uwcosim.filters.grid.projection_kernels import (
     TWO_PI,
     _posterior_moments,
@@ -425,14 +426,8 @@ def prior_step(m, Tq, Tx, lo, length, neg_limit, nx, p, k, kmean, kcov, H, R, c,
     fails, the values have no positive mass, their moments are not finite, or
     ``neg > neg_limit`` (a positivity repair follows)."""
     km, kc, phi, nis, ok = kalman_step(kmean, kcov, H, R, c, z, rows, F, active)
-    M = Tx.shape[1]
     values, neg = prior_values(m, Tq, Tx, length)
-    m0 = np.empty(M)
-    m1 = np.zeros(M)
-    for i in range(M):
-        for j in range(M):
-            m1[j] += values[i, j]
-        m0[i] = _row_sum(values, i, False)
+    m0, m1 = _marginals2(values)
     _, mean, cov, status = _posterior_moments(values, m0, m1, lo, length)
     if not ok or status != 0 or not neg <= neg_limit:
         return False, neg, mean, cov, np.zeros(nx), np.zeros((nx, nx)), False, km, kc, phi, nis

@@ -138,6 +138,17 @@ def _spline_matrix(coords: np.ndarray, n: int, size: int) -> sparse.csr_matrix:
     return B
 
 
+def _gauss_prefilter_2d(shape: tuple[int, int], spacing, D: np.ndarray) -> np.ndarray:
+    """``exp(-w' D w / 2)`` times the cubic B-spline prefilter on a two-dimensional real-FFT
+    spectrum of ``shape``: the diagonal factors as vectors, one full exp for the cross term."""
+    a, b = (o / spacing[d] for d, o in enumerate(_unit_frequencies(shape)))
+    kern = np.exp((-D[0, 1] * a) * b)
+    col, row = _inverse_bspline_factors(shape)
+    kern *= np.exp((-0.5 * D[0, 0]) * a * a) * col
+    kern *= np.exp((-0.5 * D[1, 1]) * b * b) * row
+    return kern
+
+
 def shift_blur(values: np.ndarray, spacing, coords: list[np.ndarray], D: np.ndarray,
                fast: bool = False):
     """Prediction of a drift independent of the grid: ``(p * N(0, D))`` at shifted points.
@@ -158,19 +169,14 @@ def shift_blur(values: np.ndarray, spacing, coords: list[np.ndarray], D: np.ndar
         sfft.next_fast_len(values.shape[d] + min(pads[d], values.shape[d]), real=True)
         for d in range(n)
     )
-    oms = [o / spacing[d] for d, o in enumerate(_unit_frequencies(shape))]
     X = sfft.rfftn(values, s=shape)
-    if n == 2:  # diagonal factors as vectors, one full exp for the cross term
-        a, b = oms
-        kern = np.exp((-D[0, 1] * a) * b)
-        col, row = _inverse_bspline_factors(shape)
-        kern *= np.exp((-0.5 * D[0, 0]) * a * a) * col
-        kern *= np.exp((-0.5 * D[1, 1]) * b * b) * row
-        X *= kern
+    if n == 2:
+        X *= _gauss_prefilter_2d(shape, spacing, D)
         out = sfft.irfftn(X, s=shape)
         out = _spline_matrix(coords[0], values.shape[0], shape[0]) @ out
         B = _spline_matrix(coords[1], values.shape[1], shape[1])
         return (B @ out.T).T
+    oms = [o / spacing[d] for d, o in enumerate(_unit_frequencies(shape))]
     quad = 0.0
     for r in range(n):
         quad = quad + (0.5 * D[r, r]) * oms[r] * oms[r]
@@ -202,14 +208,7 @@ def _shift_blur_2d(values: np.ndarray, spacing, coords: list[np.ndarray], D: np.
     buf = np.zeros(shape)
     buf[:n0, :n1] = values
     X = sfft.rfft2(buf)
-    a, b = _unit_frequencies(shape)
-    a = a / spacing[0]
-    b = b / spacing[1]
-    kern = np.exp((-D[0, 1] * a) * b)
-    col, row = _inverse_bspline_factors(shape)
-    kern *= np.exp((-0.5 * D[0, 0]) * a * a) * col
-    kern *= np.exp((-0.5 * D[1, 1]) * b * b) * row
-    X *= kern
+    X *= _gauss_prefilter_2d(shape, spacing, D)
     out = sfft.irfft2(X, s=shape)
     return pk.spline_shift_2d(out, coords[0], coords[1], n0, n1)
 

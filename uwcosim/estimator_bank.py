@@ -235,13 +235,8 @@ class EstimatorBank:
 
     def current(self) -> tuple[np.ndarray, list[bool]]:
         """The log values of the estimators' current state (the row at the start time)."""
-        n = self.model.nx
-        vals = np.full((len(self.tracks), 2 * n + 2), np.nan)
-        for i, tr in enumerate(self.tracks):
-            if tr.diverged_at is None:
-                est = tr.estimator
-                vals[i, :n] = est.x
-                vals[i, n:2 * n] = np.diag(est.P)
-                vals[i, 2 * n] = est.diagnostics.get("nis", np.nan)
-                vals[i, 2 * n + 1] = tr.nees
-        return vals.ravel(), [tr.diverged_at is not None for tr in self.tracks]
+        live = [tr for tr in self.tracks if tr.diverged_at is None]
+        X = np.array([tr.estimator.x for tr in live], dtype=float)
+        Ps = np.array([tr.estimator.P for tr in live], dtype=float)
+        nis = np.array([tr.estimator.diagnostics.get("nis", np.nan) for tr in live])
+        return self._row(live, X, Ps, nis)

@@ -149,6 +149,7 @@ class ProjectionFilter(BayesProduct, Estimator):
             raise ValueError("P0 must have a positive variance for every gridded state")
         lo, length = self._box(mean, cov)
         self.basis = po.SpectralBasis(lo, length, self.K, M)
+        self._n_basis = float(self.basis.size)
         self.m = po.gaussian_coefficients(mean, cov, self.basis)
         self._filter = (
             po.exponential_filter(self.basis, spectral_filter) if spectral_filter else None
@@ -160,6 +161,9 @@ class ProjectionFilter(BayesProduct, Estimator):
         self.fast: bool = bool(pk.ENABLED and self.basis.n == 2 and positivity in ("auto", "none")
                          and spectral_filter == 0)
         self.kalman.fast = self.fast
+        if self.fast:  # the fast update's trigonometric tables and grid arrays (reused)
+            self._tables = pk.tables(self.K, M)
+            self._grids = tuple(np.empty((M, M)) for _ in range(3))
         kal = self.kalman
         nk = len(self.part.k)
         self._kal_args = ((kal.H, kal._R, kal.c) if kal.rows and nk else
@@ -379,7 +383,7 @@ class ProjectionFilter(BayesProduct, Estimator):
             return False
         H, R, c = self._kal_args
         zz = _NO_Z if z is None else z
-        tb = pk.tables(self.K, basis.M)
+        tb = self._tables
         limit = self.neg_limit if self.positivity == "auto" else math.inf
         if not rows_g:
             ok, neg, mean, cov, x, P, finite, km, kc, phi, nis = pk.prior_step(
@@ -396,9 +400,10 @@ class ProjectionFilter(BayesProduct, Estimator):
             tg = self.likelihood.terrain_rows.get(r)
             if tg is None:
                 return False
-            values, E, V, neg_prior, tmax, vmin = pk.bayes_terms(
+            values, E, V = self._grids  # filled by the kernel, consumed by bayes_step
+            neg_prior, tmax, vmin = pk.bayes_terms(
                 self.m, tb[0], tb[1], basis.lo, basis.length, tg.t.coefficients, tg.tpar,
-                tg.ipar, float(z[r]), self._var[r], self.resolution_inflation)
+                tg.ipar, float(z[r]), self._var[r], self.resolution_inflation, values, E, V)
             np.exp(E, out=E)
             shift = tmax - 0.5 * math.log(vmin) if self.resolution_inflation else tmax
             thr = self._gate_threshold(rows_g) if self.gate else -math.inf
@@ -445,11 +450,11 @@ class ProjectionFilter(BayesProduct, Estimator):
 
     def _report(self) -> None:
         d = self.diagnostics
-        d["n_basis"] = float(self.basis.size)
-        lo, hi = self.basis.lo.tolist(), self.basis.hi.tolist()
+        d["n_basis"] = self._n_basis
+        lo, length = self.basis.lo.tolist(), self.basis.length.tolist()
         for i, (klo, khi) in enumerate(self._keys):
             d[klo] = lo[i]
-            d[khi] = hi[i]
+            d[khi] = lo[i] + length[i]  # basis.hi
 
     # ------------------------------------------------------------------------------------------
     @property

@@ -124,9 +124,10 @@ class BayesProduct:
         """:meth:`_bayes` for one terrain row and two gridded states (compiled kernels)."""
         tg = self.likelihood.terrain_rows[r]
         tb = pk.tables(self.K, basis.M)
-        values, E, V, neg, tmax, vmin = pk.bayes_terms(
+        values, E, V = (np.empty((basis.M, basis.M)) for _ in range(3))
+        neg, tmax, vmin = pk.bayes_terms(
             self.m, tb[0], tb[1], basis.lo, basis.length, tg.t.coefficients, tg.tpar, tg.ipar,
-            float(z[r]), self._var[r], self.resolution_inflation)
+            float(z[r]), self._var[r], self.resolution_inflation, values, E, V)
         if record:
             self.diagnostics["neg_mass_prior"] = neg
         np.exp(E, out=E)

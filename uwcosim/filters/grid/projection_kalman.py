@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from uwcosim.filters.grid.grid_moments import _marginals2
-from uwcosim.filters.grid.jit import _jit
+from uwcosim.filters.grid.jit import _jit, _sum2
 from uwcosim.filters.grid.projection_kernels import (
     TWO_PI,
     _posterior_moments,
@@ -354,7 +354,9 @@ def predict_step(x, fx, F, Q, p, k, kcov, phi, use_phi, m, lo, length, mean, cov
 def posterior_step(post, Tg, Tm, Tq, Tx, length, neg_limit, nx, p, k, mean, cov, kmean, kcov):
     """:func:`posterior_coefficients` and, when the series needs no repair, :func:`assemble`
     of ``(x, P)`` from the posterior moments: ``(m, values, neg, mass, x, P, finite)``."""
-    m, values, neg, mass = posterior_coefficients(post, Tg, Tm, Tq, Tx, length, neg_limit)
+    cell = (length[0] / post.shape[0]) * (length[1] / post.shape[1])
+    m, values, neg, mass = posterior_coefficients(post, _sum2(post, False) * cell, Tg, Tm, Tq,
+                                                  Tx, length, neg_limit)
     if math.isfinite(mass) and mass > 0.0:
         x, P, finite = assemble(nx, p, k, mean, cov, kmean, kcov)
     else:
@@ -392,7 +394,7 @@ def bayes_step(values, E, S, vmin, lo, length, shift, thr, refine, k_sigma, min_
         _, len2 = box(mean, cov, k_sigma, min_halfwidth)
         if len2[0] < refine * length[0] or len2[1] < refine * length[1]:
             return 1, loglik, no, np.nan, mean, cov, X, Pz, False, km, kc, phi, nis
-    m, _, neg, mass = posterior_coefficients(post, Tg, Tm, Tq, Tx, length, neg_limit)
+    m, _, neg, mass = posterior_coefficients(post, Z, Tg, Tm, Tq, Tx, length, neg_limit)
     if not (math.isfinite(mass) and mass > 0.0):
         return 1, loglik, no, neg, mean, cov, X, Pz, False, km, kc, phi, nis
     x, P, finite = assemble(nx, p, k, mean, cov, km, kc)

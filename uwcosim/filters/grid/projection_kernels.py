@@ -154,7 +154,17 @@ def terrain_depth(xs, ys, C, x0, y0, dx, dy, nx, ny, pad):
 
 @_jit
 def to_grid2(m, Tq, Tx, scale):
-    """Real values on the ``M x M`` grid of the Hermitian series ``m`` (``(2K+1, 2K+1)``).
+    """:func:`to_grid2_into` a new ``M x M`` array."""
+    M = Tx.shape[1]
+    out = np.empty((M, M))
+    to_grid2_into(m, Tq, Tx, scale, out)
+    return out
+
+
+@_jit
+def to_grid2_into(m, Tq, Tx, scale, out):
+    """Real values on the ``M x M`` grid of the Hermitian series ``m`` (``(2K+1, 2K+1)``),
+    written into ``out``.
 
     The rows ``q_0 >= 0`` (Hermitian symmetry), the points ``n < R`` of both directions (the
     fold of :func:`tables`): ``A(n_1) = [m_r | m_i] (C + iS)`` from the four real products
@@ -184,14 +194,12 @@ def to_grid2(m, Tq, Tx, scale):
             Ai[j, M - c] = E[K + 1 + j, c] - E[j, R + c]
     P = Tx[0, :R] @ Ar
     Q = Tx[1, :R] @ Ai
-    out = np.empty((M, M))
     for r in range(R):
         for c in range(M):
             out[r, c] = (P[r, c] - Q[r, c]) * scale
     for r in range(1, H + 1):
         for c in range(M):
             out[M - r, c] = (P[r, c] + Q[r, c]) * scale
-    return out
 
 
 @_jit
@@ -261,12 +269,13 @@ def grid_axes(lo, length, M):
 
 
 @_jit_fast
-def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
+def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation, values, W, V):
     """Prior values, terrain log-likelihood terms and the prior's negative mass on the box
     ``(lo, length)`` (``M = Tx.shape[1]`` points per dimension).
 
-    ``tpar = (x0, y0, dx, dy)``, ``ipar = (nx, ny, pad)`` describe the map. Returns
-    ``(values, W, S, neg_prior, tmax, vmin)`` with the log-likelihood
+    ``tpar = (x0, y0, dx, dy)``, ``ipar = (nx, ny, pad)`` describe the map. Writes the
+    prior's grid ``values``, ``W`` and ``S`` (into ``V``) into the caller's ``M x M`` arrays and
+    returns ``(neg_prior, tmax, vmin)``, with the log-likelihood
     ``ll = W + tmax - log(V) / 2`` (``W <= 0``, still to be exponentiated), ``S = 1 / sqrt(V)``
     and ``vmin = min(V)``: ``V = var + sum_d (dh/dx_d)^2 r_d`` with ``r_d = (res_d / (2
     h_d))^2 / 12``, ``res_d = inflation L_d / (2K + 1)``, on twice the central differences
@@ -278,13 +287,11 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
     K = (m.shape[0] - 1) // 2
     scale = 1.0 / math.sqrt(length[0] * length[1])
     cell = (length[0] / M) * (length[1] / M)
-    values = to_grid2(m, Tq, Tx, scale)
+    to_grid2_into(m, Tq, Tx, scale, values)
     neg = _sum2(values, True)
     xs, ys = grid_axes(lo, length, M)
     h = terrain_depth(xs, ys, C, tpar[0], tpar[1], tpar[2], tpar[3], ipar[0], ipar[1],
                       ipar[2])
-    W = np.empty((M, M))
-    V = np.empty((M, M))
     inflate = inflation != 0.0
     if inflate:  # twice the central differences (one-sided ones doubled)
         rx = (length[0] / (2 * K + 1) * inflation / (2.0 * length[0] / M)) ** 2 / 12.0
@@ -319,7 +326,7 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation):
         V[:] = s
     tmax = _max2(W)
     W -= tmax
-    return values, W, V, -neg * cell, tmax, vmin
+    return -neg * cell, tmax, vmin
 
 
 @_jit_fast
@@ -388,8 +395,9 @@ def _posterior_moments(post, m0, m1, lo, length):
 
 
 @_jit_fast
-def posterior_coefficients(post, Tg, Tm, Tq, Tx, length, neg_limit):
-    """``m = <post, phi> / mass(post)`` (eqs. 45, 47), its grid values and negative mass.
+def posterior_coefficients(post, Z, Tg, Tm, Tq, Tx, length, neg_limit):
+    """``m = <post, phi> / Z`` (eqs. 45, 47; ``Z`` the mass of ``post``), its grid values and
+    negative mass.
 
     When the negative mass is at most ``neg_limit`` (no positivity repair follows), ``m`` is
     also made Hermitian and normalized (:func:`hermitian_normalize`); the returned mass is then
@@ -398,7 +406,7 @@ def posterior_coefficients(post, Tg, Tm, Tq, Tx, length, neg_limit):
     sv = math.sqrt(length[0] * length[1])
     cell = (length[0] / M) * (length[1] / M)
     m = from_grid2(post, Tg, Tm, sv / M**2)
-    m /= _sum2(post, False) * cell
+    m /= Z
     values = to_grid2(m, Tq, Tx, 1.0 / sv)
     neg = -_sum2(values, True) * cell
     mass = np.nan
@@ -413,10 +421,11 @@ def hermitian_normalize(m, sqrt_volume):
 
     Returns the mass (``ProjectionFilter._normalize``)."""
     n0, n1 = m.shape
-    src = m.copy()
-    for i in range(n0):
-        for j in range(n1):
-            m[i, j] = 0.5 * (src[i, j] + src[n0 - 1 - i, n1 - 1 - j].conjugate())
+    for f in range((n0 * n1 + 1) // 2):  # each entry and its mirror (the centre alone) once
+        i, j = f // n1, f % n1
+        a, b = m[i, j], m[n0 - 1 - i, n1 - 1 - j]
+        m[i, j] = 0.5 * (a + b.conjugate())
+        m[n0 - 1 - i, n1 - 1 - j] = 0.5 * (b + a.conjugate())
     c = m[(n0 - 1) // 2, (n1 - 1) // 2]
     mass = sqrt_volume * c.real
     if math.isfinite(mass) and mass > 0.0:
@@ -479,5 +488,5 @@ __all__ = [
     "pm_grid_shift", "posterior_coefficients", "posterior_step", "predict_shift",
     "predict_step", "prior_step", "prior_values", "shift_decay", "spline_shift_2d", "tables",
     "terrain_depth",
-    "terrain_exponent", "to_grid2",
+    "terrain_exponent", "to_grid2", "to_grid2_into",
 ]

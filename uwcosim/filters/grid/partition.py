@@ -57,6 +57,8 @@ class FastFunction:
             self._buf.set_res(i, memoryview(r))
         self._views = [r.reshape(s, order="F") for r, s in zip(self._out, self._shapes,
                                                                  strict=True)]
+        #: the outputs' buffers, flat (column-major), as :meth:`views` fills them
+        self.flat = self._out
 
     def __call__(self, *args) -> list[np.ndarray]:
         for a, v in zip(self._in, args, strict=False):

@@ -161,9 +161,15 @@ class ProjectionFilter(BayesProduct, Estimator):
         self.fast: bool = bool(pk.ENABLED and self.basis.n == 2 and positivity in ("auto", "none")
                          and spectral_filter == 0)
         self.kalman.fast = self.fast
-        if self.fast:  # the fast update's trigonometric tables and grid arrays (reused)
-            self._tables = pk.tables(self.K, M)
+        if self.fast:  # the fast paths' constant arguments and grid arrays (reused)
+            tb = self._tables = pk.tables(self.K, M)
             self._grids = tuple(np.empty((M, M)) for _ in range(3))
+            limit = self.neg_limit if self.positivity == "auto" else math.inf
+            self._bayes_const = (self.refine, self.k_sigma, self.min_halfwidth, tb[2], tb[3],
+                                 tb[0], tb[1], limit, self.x.size, self.kalman._p_arr,
+                                 self.kalman._k_arr)
+            self._terrain_const: dict[int, tuple] = {}  # per terrain row, see _terrain_args
+        self._fast_predict = self.fast and self.part.drift_constant
         kal = self.kalman
         nk = len(self.part.k)
         self._kal_args = ((kal.H, kal._R, kal.c) if kal.rows and nk else
@@ -211,10 +217,10 @@ class ProjectionFilter(BayesProduct, Estimator):
         self.diagnostics = {}
         self._after_update = False
         u = np.asarray(u, dtype=float).reshape(-1)
-        part = self.part
-        if part.drift_constant and self.fast:
+        if self._fast_predict:
             self._predict_fast(u, dt)
             return
+        part = self.part
         xk_before = None if part.drift_constant else self.kalman.mean.copy()
         inc = self.kalman.increment(self.x, u, dt)
         if part.drift_constant:
@@ -264,11 +270,13 @@ class ProjectionFilter(BayesProduct, Estimator):
         """:meth:`predict` for a drift independent of the gridded states: the conditional
         Kalman prediction, the moved and decayed series and ``(x, P)`` in one compiled call."""
         kal = self.kalman
-        fx, F, Q = kal.step.views(self.x, u, dt)  # consumed by the kernel at once
-        use_phi = kal.long_run and kal._phi is not None and bool(kal.k)
+        step = kal.step
+        _, F, Q = step.views(self.x, u, dt)  # consumed by the kernel at once
+        phi = kal._phi
+        use_phi = phi is not None and kal.long_run and bool(kal.k)
         (m, lo, length, mean, cov, mass, kmean, kcov, Fkk, x, P, finite) = pk.predict_step(
-            self.x, fx[:, 0], F, Q, kal._p_arr, kal._k_arr, kal.cov,
-            kal._phi if use_phi else kal._eye, use_phi, self.m, self.basis.lo,
+            self.x, step.flat[0], F, Q, kal._p_arr, kal._k_arr, kal.cov,
+            phi if use_phi else kal._eye, use_phi, self.m, self.basis.lo,
             self.basis.length, self._mean, self._cov, self.k_sigma, self.min_halfwidth)
         kal.mean, kal.cov = kmean, kcov
         if kal.k:
@@ -383,9 +391,9 @@ class ProjectionFilter(BayesProduct, Estimator):
             return False
         H, R, c = self._kal_args
         zz = _NO_Z if z is None else z
-        tb = self._tables
-        limit = self.neg_limit if self.positivity == "auto" else math.inf
         if not rows_g:
+            tb = self._tables
+            limit = self.neg_limit if self.positivity == "auto" else math.inf
             ok, neg, mean, cov, x, P, finite, km, kc, phi, nis = pk.prior_step(
                 self.m, tb[0], tb[1], basis.lo, basis.length, limit, self.x.size, kal._p_arr,
                 kal._k_arr, kal.mean, kal.cov, H, R, c, zz, kal._rows_idx, kal._F, active)
@@ -397,21 +405,18 @@ class ProjectionFilter(BayesProduct, Estimator):
             if len(rows_g) != 1:
                 return False
             r = rows_g[0]
-            tg = self.likelihood.terrain_rows.get(r)
-            if tg is None:
+            targs = self._terrain_const.get(r) or self._terrain_args(r)
+            if not targs:
                 return False
             values, E, V = self._grids  # filled by the kernel, consumed by bayes_step
-            neg_prior, tmax, vmin = pk.bayes_terms(
-                self.m, tb[0], tb[1], basis.lo, basis.length, tg.t.coefficients, tg.tpar,
-                tg.ipar, float(z[r]), self._var[r], self.resolution_inflation, values, E, V)
+            tables, terrain, noise, thr = targs
+            neg_prior, tmax, vmin = pk.bayes_terms(self.m, *tables, basis.lo, basis.length,
+                                                   *terrain, float(z[r]), *noise, values, E, V)
             np.exp(E, out=E)
             shift = tmax - 0.5 * math.log(vmin) if self.resolution_inflation else tmax
-            thr = self._gate_threshold(rows_g) if self.gate else -math.inf
             code, loglik, m, neg, mean, cov, x, P, finite, km, kc, phi, nis = pk.bayes_step(
-                values, E, V, vmin, basis.lo, basis.length, shift, thr, self.refine,
-                self.k_sigma, self.min_halfwidth, tb[2], tb[3], tb[0], tb[1], limit,
-                self.x.size, kal._p_arr, kal._k_arr, kal.mean, kal.cov, H, R, c, zz,
-                kal._rows_idx, kal._F, active)
+                values, E, V, vmin, basis.lo, basis.length, shift, thr, *self._bayes_const,
+                kal.mean, kal.cov, H, R, c, zz, kal._rows_idx, kal._F, active)
             if code:
                 return False
             self.m = m
@@ -420,6 +425,19 @@ class ProjectionFilter(BayesProduct, Estimator):
             diag["loglik"] = loglik
         self._accept(diag, neg, mean, cov, x, P, finite)
         return True
+
+    def _terrain_args(self, r: int) -> tuple:
+        """The constant arguments of the fast update with the terrain row ``r`` (cached):
+        ``((Tq, Tx), (map coefficients, tpar, ipar), (variance, inflation), gate
+        threshold)``; ``()`` when ``r`` is not a terrain row (the general path handles it)."""
+        tg = self.likelihood.terrain_rows.get(r)
+        if tg is None:
+            return ()
+        thr = self._gate_threshold([r]) if self.gate else -math.inf
+        out = self._terrain_const[r] = ((self._tables[0], self._tables[1]),
+                                        (tg.t.coefficients, tg.tpar, tg.ipar),
+                                        (self._var[r], self.resolution_inflation), thr)
+        return out
 
     def _accept(self, diag: dict, neg: float, mean, cov, x, P, finite: bool) -> None:
         """Take a compiled update's result: the gridded block's moments, the estimate ``(x,

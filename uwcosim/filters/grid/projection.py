@@ -394,12 +394,13 @@ class ProjectionFilter(BayesProduct, Estimator):
         if not rows_g:
             tb = self._tables
             limit = self.neg_limit if self.positivity == "auto" else math.inf
-            ok, neg, mean, cov, x, P, finite, km, kc, phi, nis = pk.prior_step(
+            ok, neg, x, P, finite, phi, nis = pk.prior_step(
                 self.m, tb[0], tb[1], basis.lo, basis.length, limit, self.x.size, kal._p_arr,
-                kal._k_arr, kal.mean, kal.cov, H, R, c, zz, kal._rows_idx, kal._F, active)
+                kal._k_arr, kal.mean, kal.cov, H, R, c, zz, kal._rows_idx, kal._F, active,
+                self._mean, self._cov)
             if not ok:
                 return False
-            diag = self._fresh_diagnostics(active, km, kc, phi, nis, len(rows_k))
+            diag = self._fresh_diagnostics(active, phi, nis, len(rows_k))
             diag["neg_mass_prior"] = neg
         else:
             if len(rows_g) != 1:
@@ -414,16 +415,17 @@ class ProjectionFilter(BayesProduct, Estimator):
                                                    *terrain, float(z[r]), *noise, values, E, V)
             np.exp(E, out=E)
             shift = tmax - 0.5 * math.log(vmin) if self.resolution_inflation else tmax
-            code, loglik, m, neg, mean, cov, x, P, finite, km, kc, phi, nis = pk.bayes_step(
+            code, loglik, m, neg, x, P, finite, phi, nis = pk.bayes_step(
                 values, E, V, vmin, basis.lo, basis.length, shift, thr, *self._bayes_const,
-                kal.mean, kal.cov, H, R, c, zz, kal._rows_idx, kal._F, active)
+                kal.mean, kal.cov, H, R, c, zz, kal._rows_idx, kal._F, active, self._mean,
+                self._cov)
             if code:
                 return False
             self.m = m
-            diag = self._fresh_diagnostics(active, km, kc, phi, nis, len(rows_k))
+            diag = self._fresh_diagnostics(active, phi, nis, len(rows_k))
             diag["neg_mass_prior"] = neg_prior
             diag["loglik"] = loglik
-        self._accept(diag, neg, mean, cov, x, P, finite)
+        self._accept(diag, neg, None, None, x, P, finite)  # moments written in place
         return True
 
     def _terrain_args(self, r: int) -> tuple:
@@ -440,28 +442,31 @@ class ProjectionFilter(BayesProduct, Estimator):
         return out
 
     def _accept(self, diag: dict, neg: float, mean, cov, x, P, finite: bool) -> None:
-        """Take a compiled update's result: the gridded block's moments, the estimate ``(x,
-        P)`` (FilterDivergence if not finite) and the diagnostics (no positivity repair)."""
+        """Take a compiled update's result: the gridded block's moments (``None``: the kernel
+        wrote them into ``_mean``, ``_cov``), the estimate ``(x, P)`` (FilterDivergence if not
+        finite) and the diagnostics (no positivity repair)."""
         diag["neg_mass"] = neg
         if self.positivity == "auto":
             diag["positivity_applied"] = 0.0
-        self._mean, self._cov = mean, cov
+        if mean is not None:
+            self._mean, self._cov = mean, cov
         if not finite:
             self.diverged = True
             raise FilterDivergence(f"{self.kind}: non-finite estimate")
         self.x, self.P = x, P
         self._report()
 
-    def _fresh_diagnostics(self, active, km, kc, phi, nis, n_rows) -> dict:
+    def _fresh_diagnostics(self, active, phi, nis, n_rows) -> dict:
         """:func:`begin_update`'s bookkeeping after a fused update: fresh diagnostics (unless
-        a prediction just wrote them) and the Kalman block's new state and NIS."""
+        a prediction just wrote them), the Kalman block's ``phi`` (its mean and covariance were
+        written in place) and NIS."""
         if self._after_update:
             self.diagnostics = {}
         self._after_update = True
         diag = self.diagnostics
         if active:
             kal = self.kalman
-            kal.mean, kal.cov, kal._phi = km, kc, phi
+            kal._phi = phi
             diag["nis"] = nis
             diag["nis_dof"] = float(n_rows)
         return diag

@@ -366,39 +366,52 @@ def posterior_step(post, Tg, Tm, Tq, Tx, length, neg_limit, nx, p, k, mean, cov,
 
 @_jit
 def bayes_step(values, E, S, vmin, lo, length, shift, thr, refine, k_sigma, min_halfwidth, Tg,
-               Tm, Tq, Tx, neg_limit, nx, p, k, kmean, kcov, H, R, c, z, rows, F, active):
+               Tm, Tq, Tx, neg_limit, nx, p, k, kmean, kcov, H, R, c, z, rows, F, active,
+               mean_out, cov_out):
     """The common ``ProjectionFilter.update`` with one terrain row, after :func:`bayes_terms`
     and the exponential: :func:`bayes_posterior`, the log-likelihood ``log(Z) + shift``, the
     gate (``loglik >= thr``), the refinement test (the posterior box narrower than ``refine``
     times the prior box on some axis) and :func:`posterior_step` in one call.
 
     First the Kalman update of the velocities (:func:`kalman_step`, arguments ``kmean`` to
-    ``active``). Returns ``(code, loglik, m, neg, mean, cov, x, P, finite, kmean, kcov, phi,
-    nis)``; ``code`` 0: done (``m``
-    Hermitian and normalized, no repair needed); 1: any other case (no posterior mass,
+    ``active``). Returns ``(code, loglik, m, neg, x, P, finite, phi, nis)``; ``code`` 0: done
+    (``m`` Hermitian and normalized, no repair needed; the gridded block's moments written
+    into ``mean_out``, ``cov_out`` and the velocities' mean and covariance into ``kmean``,
+    ``kcov``, in place: fewer arrays to return); 1: any other case (no posterior mass,
     non-finite moments, gate failed, refinement, positivity repair, failed Kalman update),
-    which the caller runs on its general path. The arithmetic is that of the separate
-    kernels, in the same order."""
+    which the caller runs on its general path: then nothing is written. The arithmetic is that
+    of the separate kernels, in the same order."""
     km, kc, phi, nis, ok = kalman_step(kmean, kcov, H, R, c, z, rows, F, active)
     no = np.zeros((1, 1), np.complex128)
     X, Pz = np.zeros(nx), np.zeros((nx, nx))
     if not ok:
-        return 1, np.nan, no, np.nan, np.zeros(2), np.zeros((2, 2)), X, Pz, False, km, kc, phi, nis
+        return 1, np.nan, no, np.nan, X, Pz, False, phi, nis
     post, Z, mean, cov, status = bayes_posterior(values, E, S, vmin, lo, length)
     if status == 1 or status == 3:
-        return 1, np.nan, no, np.nan, mean, cov, X, Pz, False, km, kc, phi, nis
+        return 1, np.nan, no, np.nan, X, Pz, False, phi, nis
     loglik = math.log(Z) + shift
     if not loglik >= thr:
-        return 1, loglik, no, np.nan, mean, cov, X, Pz, False, km, kc, phi, nis
+        return 1, loglik, no, np.nan, X, Pz, False, phi, nis
     if refine < 1.0:
         _, len2 = box(mean, cov, k_sigma, min_halfwidth)
         if len2[0] < refine * length[0] or len2[1] < refine * length[1]:
-            return 1, loglik, no, np.nan, mean, cov, X, Pz, False, km, kc, phi, nis
+            return 1, loglik, no, np.nan, X, Pz, False, phi, nis
     m, _, neg, mass = posterior_coefficients(post, Z, Tg, Tm, Tq, Tx, length, neg_limit)
     if not (math.isfinite(mass) and mass > 0.0):
-        return 1, loglik, no, neg, mean, cov, X, Pz, False, km, kc, phi, nis
+        return 1, loglik, no, neg, X, Pz, False, phi, nis
     x, P, finite = assemble(nx, p, k, mean, cov, km, kc)
-    return 0, loglik, m, neg, mean, cov, x, P, finite, km, kc, phi, nis
+    _write_moments(mean, cov, km, kc, mean_out, cov_out, kmean, kcov)
+    return 0, loglik, m, neg, x, P, finite, phi, nis
+
+
+@_jit
+def _write_moments(mean, cov, km, kc, mean_out, cov_out, kmean, kcov):
+    """Copy the gridded block's moments and the velocities' Kalman state into the caller's
+    arrays (``km``, ``kc`` may be ``kmean``, ``kcov`` themselves)."""
+    mean_out[:] = mean
+    cov_out[:, :] = cov
+    kmean[:] = km
+    kcov[:, :] = kc
 
 
 @_jit
@@ -415,7 +428,7 @@ def kalman_step(kmean, kcov, H, R, c, z, rows, F, active):
 
 @_jit
 def prior_step(m, Tq, Tx, lo, length, neg_limit, nx, p, k, kmean, kcov, H, R, c, z, rows, F,
-               active):
+               active, mean_out, cov_out):
     """``ProjectionFilter.update`` without a grid measurement row: the posterior is the prior.
 
     The prior's grid values and negative mass (:func:`prior_values`), their moments (those of
@@ -423,15 +436,17 @@ def prior_step(m, Tq, Tx, lo, length, neg_limit, nx, p, k, kmean, kcov, H, R, c,
     and ``(x, P)``, after the Kalman update of the velocities (:func:`kalman_step`). The
     series is kept as it is: the general path re-projects the grid values
     onto the basis, which gives the (Hermitian, normalized) series back to round-off, and
-    recomputes the same grid values. Returns ``(ok, neg, mean, cov, x, P, finite, kmean, kcov,
-    phi, nis)``; ``ok`` False (the caller runs its general path) when the Kalman update
-    fails, the values have no positive mass, their moments are not finite, or
-    ``neg > neg_limit`` (a positivity repair follows)."""
+    recomputes the same grid values. Returns ``(ok, neg, x, P, finite, phi, nis)`` and writes
+    the moments and the Kalman state in place as :func:`bayes_step`; ``ok`` False (the caller
+    runs its general path; nothing written) when the Kalman update fails, the values have no
+    positive mass, their moments are not finite, or ``neg > neg_limit`` (a positivity repair
+    follows)."""
     km, kc, phi, nis, ok = kalman_step(kmean, kcov, H, R, c, z, rows, F, active)
     values, neg = prior_values(m, Tq, Tx, length)
     m0, m1 = _marginals2(values)
     _, mean, cov, status = _posterior_moments(values, m0, m1, lo, length)
     if not ok or status != 0 or not neg <= neg_limit:
-        return False, neg, mean, cov, np.zeros(nx), np.zeros((nx, nx)), False, km, kc, phi, nis
+        return False, neg, np.zeros(nx), np.zeros((nx, nx)), False, phi, nis
     x, P, finite = assemble(nx, p, k, mean, cov, km, kc)
-    return True, neg, mean, cov, x, P, finite, km, kc, phi, nis
+    _write_moments(mean, cov, km, kc, mean_out, cov_out, kmean, kcov)
+    return True, neg, x, P, finite, phi, nis

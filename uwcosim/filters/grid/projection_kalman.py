@@ -144,47 +144,82 @@ def _mv(A, x):
 
 
 @_jit
+def _sandwich(F, r, k, S, Q, add_q):
+    """``_sym(A S A' + B)`` with ``A = F[r][:, k]`` and ``B = Q[r][:, r]`` (no ``B`` unless
+    ``add_q``): the arithmetic of ``_sym(_mm(_mm(A, S), A.T) + B)`` without the copies."""
+    n, m = r.size, k.size
+    T = np.zeros((n, m))
+    for i in range(n):
+        for c in range(m):
+            a = F[r[i], k[c]]
+            for j in range(m):
+                T[i, j] += a * S[c, j]
+    U = np.zeros((n, n))
+    for i in range(n):
+        for c in range(m):
+            a = T[i, c]
+            for j in range(n):
+                U[i, j] += a * F[r[j], k[c]]
+    if add_q:
+        for i in range(n):
+            for j in range(n):
+                U[i, j] = U[i, j] + Q[r[i], r[j]]
+    for i in range(n):
+        for j in range(i, n):
+            v = 0.5 * (U[i, j] + U[j, i])
+            U[i, j] = v
+            U[j, i] = v
+    return U
+
+
+@_jit
 def kalman_increment(x, fx, F, Q, p, k, cov, phi, use_phi):
-    """:meth:`ConditionalKalman.increment` after the model call: ``(d, D, Dk, mean, cov)``."""
+    """:meth:`ConditionalKalman.increment` after the model call: ``(d, D, Dk, mean, cov)``.
+
+    With ``use_phi`` the long-run covariance ``S = X + X' - cov``, ``X = (I - phi)^-1 cov``,
+    replaces ``cov`` in ``Dk`` when it is finite, not too large and positive definite."""
     npp, nk = p.size, k.size
     d = np.empty(npp)
-    D = np.empty((npp, npp))
     for a in range(npp):
         d[a] = fx[p[a]] - x[p[a]]
-        for b in range(npp):
-            D[a, b] = Q[p[a], p[b]]
     Dk = np.zeros((npp, npp))
     mean = np.empty(nk)
     new_cov = cov
     if nk:
         S = cov
         if use_phi:
-            eye = np.eye(nk)
-            X, ok = _solve(eye - phi, cov)
+            A = np.empty((nk, nk))
+            for a in range(nk):
+                for b in range(nk):
+                    A[a, b] = (1.0 if a == b else 0.0) - phi[a, b]
+            X, ok = _solve(A, cov)
             if ok:
-                S2 = _sym(X + X.T - cov)
+                S2 = np.empty((nk, nk))  # _sym(X + X' - cov)
                 tr, trP = 0.0, 0.0
+                for a in range(nk):
+                    for b in range(nk):
+                        S2[a, b] = 0.5 * (((X[a, b] + X[b, a]) - cov[a, b])
+                                          + ((X[b, a] + X[a, b]) - cov[b, a]))
                 for a in range(nk):
                     tr += S2[a, a]
                     trP += cov[a, a]
                 if (math.isfinite(S2.sum()) and not tr > 1e6 * max(trP, 1e-300)
                         and _chol_ok(S2)):
                     S = S2
-        Fpk = np.empty((npp, nk))
-        Fkk = np.empty((nk, nk))
-        Qkk = np.empty((nk, nk))
-        for a in range(npp):
-            for b in range(nk):
-                Fpk[a, b] = F[p[a], k[b]]
         for a in range(nk):
             mean[a] = fx[k[a]]
-            for b in range(nk):
-                Fkk[a, b] = F[k[a], k[b]]
-                Qkk[a, b] = Q[k[a], k[b]]
-        Dk = _sym(_mm(_mm(Fpk, S), Fpk.T))
-        new_cov = _sym(_mm(_mm(Fkk, cov), Fkk.T) + Qkk)
-        D = D + Dk
-    return d, _sym(D), Dk, mean, new_cov
+        Dk = _sandwich(F, p, k, S, Q, False)
+        new_cov = _sandwich(F, k, k, cov, Q, True)
+    D = np.empty((npp, npp))  # _sym(Q[p][:, p] + Dk)
+    for a in range(npp):
+        for b in range(npp):
+            D[a, b] = Q[p[a], p[b]] + Dk[a, b] if nk else Q[p[a], p[b]]
+    for a in range(npp):
+        for b in range(a, npp):
+            v = 0.5 * (D[a, b] + D[b, a])
+            D[a, b] = v
+            D[b, a] = v
+    return d, D, Dk, mean, new_cov
 
 
 @_jit

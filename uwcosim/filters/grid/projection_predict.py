@@ -55,13 +55,14 @@ def _powers(K, angle, out_c, out_s):
 
 
 @_jit
-def _transfer(K, lo, length, lo2, length2, S, r0, ph):
+def _transfer(K, lo, length, lo2, length2, S, full, ph):
     """One dimension of :func:`~uwcosim.filters.grid.spectral.transfer_matrix` as
     ``T[q', q] = l[q'] S[q', q] r[q]``: the real ``S`` and the phases ``l = ph[0] + i ph[1]``,
-    ``r = ph[2] + i ph[3]`` (index ``K + q``; ``ph`` has 9 rows, the others scratch).
+    ``r = ph[2] + i ph[3]`` (index ``K + q``; ``ph`` has 10 rows, the others scratch).
 
-    The rows ``q' = 0..K`` of ``S`` go to ``S[r0 + q']``; with ``r0 == K`` (``S`` of ``2K + 1``
-    rows) the rows ``-q'`` are mirrored, ``S[-q', -q] = S[q', q]`` exactly. ``S = 0`` when
+    Not ``full``: the rows ``q' = 0..K`` of ``S`` into ``S`` (``K + 1`` rows). ``full``: all of
+    ``S`` transposed (``S[q, q']``, the layout a BLAS product takes fastest), the rows ``-q'``
+    mirrored, ``S[-q', -q] = S[q', q]`` exactly. ``S = 0`` when
     the intervals do not overlap. The sine of the difference ``sin(x_i - y_j)`` is
     ``sin x cos y - cos x sin y`` from per-index factors (``|error| <= 2 (2K + 3) eps /
     |delta|``), ``sin(d) / d`` near the diagonal its series (:func:`_sinc`); the factors are
@@ -89,7 +90,7 @@ def _transfer(K, lo, length, lo2, length2, S, r0, ph):
     for q in range(K + 1):
         om2 = TWO_PI * q / length2
         cq, sq = ca[K + q], sa[K + q]
-        row = S[r0 + q]
+        row = ph[9]
         for j in range(n):  # no branch: vectorizes; the near-diagonal entries are redone below
             row[j] = (sq * cb[j] - cq * sb[j]) / ((om2 - om[j]) * hw) * c
         # the candidates j (one more on each side against rounding): a loop over all j would
@@ -102,9 +103,12 @@ def _transfer(K, lo, length, lo2, length2, S, r0, ph):
             delta = (om2 - om[j]) * hw
             if abs(delta) < 0.5:  # sin(x - y) from the factors cancels: its series
                 row[j] = _sinc(delta) * c
-        if r0 == K and q > 0:
+        if full:
             for j in range(n):
-                S[K - q, n - 1 - j] = row[j]
+                S[j, K + q] = row[j]
+                S[n - 1 - j, K - q] = row[j]
+        else:
+            S[q] = row
 
 
 @_jit
@@ -172,9 +176,9 @@ def _shift_decay(m, lo, length, lo2, length2, D, decay, sv, normalize):
     h = K + 1
     S0 = np.empty((h, n))
     S1 = np.empty((n, n))
-    ph = np.empty((2, 9, n))
-    _transfer(K, lo[0], length[0], lo2[0], length2[0], S0, 0, ph[0])  # rows q0 >= 0
-    _transfer(K, lo[1], length[1], lo2[1], length2[1], S1, K, ph[1])
+    ph = np.empty((2, 10, n))
+    _transfer(K, lo[0], length[0], lo2[0], length2[0], S0, False, ph[0])  # rows q0 >= 0
+    _transfer(K, lo[1], length[1], lo2[1], length2[1], S1, True, ph[1])  # S1'
     # diag(r0) m diag(r1), real parts then imaginary parts of each row
     M = np.empty((n, 2 * n))
     r0c, r0s, r1c, r1s = ph[0, 2], ph[0, 3], ph[1, 2], ph[1, 3]
@@ -186,7 +190,7 @@ def _shift_decay(m, lo, length, lo2, length2, D, decay, sv, normalize):
             M[i, j] = xr * r1c[j] - xi * r1s[j]
             M[i, n + j] = xr * r1s[j] + xi * r1c[j]
     # S0 M: rows [re | im]; as (2h, n) the rows alternate re, im; times S1'
-    Y = (S0 @ M).reshape((2 * h, n)) @ S1.T
+    Y = (S0 @ M).reshape((2 * h, n)) @ S1
     mass = sv * Y[0, K]  # l0[0] = l1[K] = 1 and the decay of (0, 0) is 1: exact
     scale = 1.0
     normalize = normalize and math.isfinite(mass) and mass > 0.0

@@ -80,6 +80,67 @@ def test_shift_decay_matches_reprojection_and_decay():
     assert not np.any(pk.shift_decay(m, basis.lo, basis.length, far.lo, far.length, D, False))
 
 
+@pytest.mark.parametrize("K,shift,scale,D01", [
+    (10, [5.0, -3.0], [1.3, 0.7], -0.4),  # one axis grows, the other shrinks
+    (7, [230.0, -185.0], [1.0, 1.0], 0.9),  # boxes overlapping by a few metres
+    (4, [0.0, 0.0], [0.02, 0.05], 0.0),  # much narrower boxes: many near-diagonal sinc terms
+])
+def test_shift_decay_any_series_and_boxes(K, shift, scale, D01):
+    """The transfer split into real matrices and phases, for a random Hermitian series (the
+    kernel computes the rows ``q0 >= 0`` and mirrors them) and boxes from nested to barely
+    overlapping; ``D01 != 0`` runs the separated decay (a chain of products for the cross
+    term)."""
+    basis = _basis(K=K)
+    rng = np.random.default_rng(K)
+    m = rng.standard_normal(basis.shape) + 1j * rng.standard_normal(basis.shape)
+    m = 0.5 * (m + np.conj(m[::-1, ::-1]))
+    new = basis.moved(basis.lo + shift, basis.length * np.array(scale))
+    D = np.array([[2.0, D01], [D01, 1.5]])
+    mats = po.transfer_matrices(basis.K, basis.lo, basis.length, new.lo, new.length)
+    ref = po.contract(m, list(mats)) * po.diffusion_decay(new, D)
+    out = pk.shift_decay(m, basis.lo, basis.length, new.lo, new.length, D, True)
+    assert np.max(np.abs(out - ref)) <= 1e-12 * np.max(np.abs(ref))
+
+
+def test_shift_decay_large_exponents_use_the_direct_decay():
+    """A singular diffusion ``D = d [[1, 1], [1, 1]]`` keeps the modes ``q0 = -q1``
+    (``exp(-d (a + b)^2 / 2) = 1``) and kills the others; its separated factors would be
+    ``exp(-d a^2 / 2) = 0`` times ``exp(-d a b) = inf`` (NaN). The kernel must see the large
+    exponents and take ``exp(-quad)`` directly."""
+    basis = _basis()
+    square = basis.moved(basis.lo + 2.0, np.full(2, 200.0))  # a = -b exactly on q0 = -q1
+    m = np.random.default_rng(0).standard_normal(basis.shape) + 0j  # all modes carry weight
+    m = 0.5 * (m + m[::-1, ::-1])
+    a_max = 2 * np.pi * basis.K / 200.0
+    d = 2 * 700.0 / a_max**2  # exp(-d a^2 / 2) = exp(-700) at the highest mode, the cross
+    D = d * np.ones((2, 2))  # exponent d a^2 = 1400: far beyond the separable limit (700)
+    mats = po.transfer_matrices(basis.K, basis.lo, basis.length, square.lo, square.length)
+    ref = po.contract(m, list(mats)) * po.diffusion_decay(square, D)
+    out = pk.shift_decay(m, basis.lo, basis.length, square.lo, square.length, D, True)
+    assert np.all(np.isfinite(out))
+    anti = np.fliplr(np.abs(ref)).diagonal()
+    assert np.all(anti > 1e-3 * anti.max())  # the kept modes carry the series
+    assert np.max(np.abs(out - ref)) <= 1e-12 * np.max(np.abs(ref))
+
+
+def test_predict_shift_normalizes_like_hermitian_normalize():
+    """:func:`predict_shift`'s normalization folded into the re-projection equals the
+    re-projection followed by ``hermitian_normalize`` (the centre row made Hermitian, divided
+    by the mass)."""
+    basis = _basis()
+    m = _series(basis)
+    mean = basis.lo + 0.5 * basis.length
+    cov = np.array([[300.0, 50.0], [50.0, 200.0]])
+    d, D = np.array([2.0, -1.5]), np.array([[2.0, 0.3], [0.3, 1.5]])
+    out, lo2, len2, mean2, cov2, mass = pk.predict_shift(m, basis.lo, basis.length, mean, cov, d,
+                                                         D, 4.0, 1.0)
+    ref = pk.shift_decay(m, basis.lo + d, basis.length, lo2, len2, D, True)
+    ref_mass = pk.hermitian_normalize(ref, np.sqrt(np.prod(len2)))
+    assert mass > 0 and abs(mass - ref_mass) <= 1e-13 * ref_mass
+    assert np.max(np.abs(out - ref)) <= 1e-13 * np.max(np.abs(ref))
+    assert np.array_equal(out, np.conj(out[::-1, ::-1]))  # exactly Hermitian
+
+
 def test_spline_shift_matches_sparse_matrices():
     rng = np.random.default_rng(1)
     X = rng.random((56, 60))

@@ -4,5 +4,6 @@ Both represent the density of a few *gridded* states on a grid or a spectral bas
 Kalman filter for the others. Everything only they use lives here: the state partition and the
 model analysis (``partition``), the measurement likelihood on a tensor grid (``likelihood``), the
 spectral machinery of the projection filter (``spectral``) and the compiled kernels
-(``projection_kernels``, ``projection_kalman``, ``point_mass_kernels``).
+(``projection_kernels``, ``projection_kalman``, ``projection_predict``,
+``point_mass_kernels``).
 """

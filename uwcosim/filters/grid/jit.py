@@ -25,8 +25,8 @@ ENABLED = (importlib.util.find_spec("numba") is not None
 
 # Numba is imported (about 0.5 s) and the kernels are bound to their compiled versions at the
 # first call of any kernel, not at import: scenarios without these filters do not pay for it.
-# Kernels live in projection_kernels, projection_kalman and point_mass_kernels (and the
-# reductions below); all register here.
+# Kernels live in projection_kernels, projection_kalman, projection_predict and
+# point_mass_kernels (and the reductions below); all register here.
 _PLAIN: list[tuple] = []  # (python function, fastmath flags, first-call stub)
 
 

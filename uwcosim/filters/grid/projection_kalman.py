@@ -1,8 +1,9 @@
 """Compiled kernels of the projection filter's prediction and of the conditional Kalman filter.
 
 Part of :mod:`uwcosim.filters.projection_kernels` (same conventions, same lazy compilation; the
-filters reach these kernels through that module): the exact re-projection of the series onto a
-moved box with the Gaussian decay (:func:`shift_decay`, :func:`predict_shift`), the conditional
+filters reach these kernels through that module): the prediction of the series on a moved box
+(:func:`predict_shift`; the re-projection with the Gaussian decay, :func:`shift_decay`, is in
+:mod:`uwcosim.filters.grid.projection_predict` and re-exported here), the conditional
 Kalman filter of the velocities (:func:`kalman_increment`, :func:`kalman_update`), the assembly
 of ``(x, P)`` (:func:`assemble`) and the fused per-step calls :func:`predict_step`,
 :func:`posterior_step` and, for the common updates, :func:`bayes_step` (a terrain row) and
@@ -19,127 +20,21 @@ import numpy as np
 from uwcosim.filters.grid.grid_moments import _marginals2
 from uwcosim.filters.grid.jit import _jit, _sum2
 from uwcosim.filters.grid.projection_kernels import (
-    TWO_PI,
     _posterior_moments,
     _sym,
     bayes_posterior,
     box,
-    hermitian_normalize,
     posterior_coefficients,
     prior_values,
 )
+from uwcosim.filters.grid.projection_predict import _shift_decay, shift_decay
+
+__all__ = ["assemble", "available_bits", "bayes_step", "kalman_increment", "kalman_step",
+           "kalman_update", "posterior_step", "predict_shift", "predict_step", "prior_step",
+           "shift_decay"]
 
 # ---------------------------------------------------------------------------------------------
 # PFM-PSI prediction
-
-
-@_jit
-def _sinc(d):
-    """``sin(d) / d`` for ``|d| < 0.5`` by its Taylor series (Horner in ``d^2``; the first
-    omitted term is below ``5e-17``)."""
-    x = d * d
-    return 1.0 - x / 6.0 * (1.0 - x / 20.0 * (1.0 - x / 42.0 * (1.0 - x / 72.0 * (
-        1.0 - x / 110.0 * (1.0 - x / 156.0 * (1.0 - x / 210.0))))))
-
-
-@_jit
-def _powers(K, angle, out_c, out_s):
-    """``cos(q angle)``, ``sin(q angle)`` for ``q = 0..K`` into ``out_c[K + q]``,
-    ``out_s[K + q]`` and the mirrored ``-q`` (``out_c[K - q]``, ``-out_s[K + q]``): by the
-    recurrence ``e^{i q a} = e^{i (q-1) a} e^{i a}`` (``|error| <= 2 q eps``, two trigonometric
-    calls instead of ``2 (K + 1)``)."""
-    c1, s1 = math.cos(angle), math.sin(angle)
-    c, s = 1.0, 0.0
-    for q in range(K + 1):
-        out_c[K + q] = c
-        out_s[K + q] = s
-        out_c[K - q] = c
-        out_s[K - q] = -s
-        c, s = c * c1 - s * s1, s * c1 + c * s1
-
-
-@_jit
-def _transfer(K, lo, length, lo2, length2, upper):
-    """:func:`projection_ops.transfer_matrix` (one dimension), with the phases and the sine of
-    the difference ``sin(x_i - y_j)`` separated into per-index factors.
-
-    Only the rows ``q >= 0`` when ``upper`` (``T[K:]``, what the Hermitian half of a
-    re-projection needs). The factors of ``-q`` are the conjugates (negated sines) of those of
-    ``q``, and ``T[-q, -q'] = conj(T[q, q'])``: both are computed once, by exact sign flips
-    (half the entries). The factors are powers of four unit complex numbers
-    (:func:`_powers`), ``sin(d) / d`` near the diagonal its series (:func:`_sinc`)."""
-    n = 2 * K + 1
-    a = max(lo, lo2)
-    w = min(lo + length, lo2 + length2) - a
-    T = np.zeros((K + 1 if upper else n, n), np.complex128)
-    if w <= 0.0:
-        return T
-    c = w / math.sqrt(length * length2)
-    om = np.empty(n)
-    om2 = np.empty(n)
-    for i in range(K, n):  # q = i - K >= 0, mirrored to -q (exact)
-        om2[i] = TWO_PI * (i - K) / length2
-        om[i] = TWO_PI * (i - K) / length
-        om2[n - 1 - i] = -om2[i]
-        om[n - 1 - i] = -om[i]
-    lc = np.empty(n)  # left[i] = e^{-i om2[i] (a - lo2 + w/2)}
-    ls = np.empty(n)
-    rc = np.empty(n)  # right[j] = e^{i om[j] (a - lo + w/2)}
-    rs = np.empty(n)
-    sa = np.empty(n)  # sin, cos of x_i = -w om2[i] / 2
-    ca = np.empty(n)
-    sb = np.empty(n)  # sin, cos of y_j = -w om[j] / 2
-    cb = np.empty(n)
-    b2 = TWO_PI / length2  # om2 of q = 1
-    b1 = TWO_PI / length
-    _powers(K, -b2 * (a - lo2 + 0.5 * w), lc, ls)
-    _powers(K, b1 * (a - lo + 0.5 * w), rc, rs)
-    _powers(K, -0.5 * w * b2, ca, sa)
-    _powers(K, -0.5 * w * b1, cb, sb)
-    r0 = 0 if upper else K  # row of q = 0 in T
-    for i in range(K, n):
-        for j in range(n):
-            delta = (om2[i] - om[j]) * (-0.5 * w)
-            if abs(delta) < 0.5:  # sin(x - y) from the factors cancels: its series
-                s = _sinc(delta)
-            else:  # sin(x - y) = sin x cos y - cos x sin y, |error| <= 2 (2K + 3) eps / |delta|
-                s = (sa[i] * cb[j] - ca[i] * sb[j]) / delta
-            v = s * c
-            re = lc[i] * rc[j] - ls[i] * rs[j]
-            im = lc[i] * rs[j] + ls[i] * rc[j]
-            T[r0 + i - K, j] = complex(re * v, im * v)
-    if not upper:
-        for i in range(K):
-            for j in range(n):
-                T[i, j] = T[n - 1 - i, n - 1 - j].conjugate()
-    return T
-
-
-@_jit
-def shift_decay(m, lo, length, lo2, length2, D, decay):
-    """Re-projection of ``m`` from the box ``(lo, length)`` onto ``(lo2, length2)`` (exact
-    integrals, :func:`projection_ops.reproject`), times ``exp(-w' D w / 2)`` on the new box
-    when ``decay`` (:func:`projection_ops.diffusion_decay`)."""
-    K = (m.shape[0] - 1) // 2
-    n = 2 * K + 1
-    T0 = _transfer(K, lo[0], length[0], lo2[0], length2[0], True)  # rows q_0 >= 0
-    T1 = _transfer(K, lo[1], length[1], lo2[1], length2[1], False)
-    # the result is Hermitian (out[-q] = conj(out[q]), as m and the transfers are): compute
-    # the rows q_0 >= 0 and mirror them
-    half = T0 @ m @ np.ascontiguousarray(T1.T)
-    out = np.empty((n, n), np.complex128)
-    for i in range(K + 1):
-        a = TWO_PI * i / length2[0]
-        for j in range(n):
-            v = half[i, j]
-            if decay:
-                b = TWO_PI * (j - K) / length2[1]
-                quad = (0.5 * D[0, 0]) * (a * a) + (0.5 * D[1, 1]) * (b * b) + (D[0, 1] * a) * b
-                v *= math.exp(-quad)
-            out[K + i, j] = v
-            if i > 0:
-                out[K - i, n - 1 - j] = v.conjugate()
-    return out
 
 
 @_jit
@@ -147,17 +42,15 @@ def predict_shift(m, lo, length, mean, cov, d, D, k_sigma, min_halfwidth):
     """``ProjectionFilter.predict`` for a drift independent of the gridded states.
 
     The box moves to ``box(mean + d, cov + D)``; the series is translated by ``d`` and re-projected
-    there, then decays by ``exp(-w' D w / 2)``. Returns ``(m, lo, length, mean, cov, mass)``;
-    when the mass is finite and positive, ``m`` is already made Hermitian and normalized.
+    there, then decays by ``exp(-w' D w / 2)`` (:func:`shift_decay`). Returns ``(m, lo, length,
+    mean, cov, mass)``; when the mass is finite and positive, ``m`` is already made Hermitian
+    and normalized (:func:`~uwcosim.filters.grid.projection_predict._shift_decay`).
     """
     mean2 = mean + d
     cov2 = cov + D
     lo2, len2 = box(mean2, cov2, k_sigma, min_halfwidth)
-    out = shift_decay(m, lo + d, length, lo2, len2, D, True)
-    K = (m.shape[0] - 1) // 2
-    mass = math.sqrt(len2[0] * len2[1]) * out[K, K].real
-    if math.isfinite(mass) and mass > 0.0:
-        mass = hermitian_normalize(out, math.sqrt(len2[0] * len2[1]))
+    out, mass = _shift_decay(m, lo + d, length, lo2, len2, D, True,
+                             math.sqrt(len2[0] * len2[1]), True)
     return out, lo2, len2, mean2, _sym(cov2), mass
 
 
@@ -251,47 +144,82 @@ def _mv(A, x):
 
 
 @_jit
+def _sandwich(F, r, k, S, Q, add_q):
+    """``_sym(A S A' + B)`` with ``A = F[r][:, k]`` and ``B = Q[r][:, r]`` (no ``B`` unless
+    ``add_q``): the arithmetic of ``_sym(_mm(_mm(A, S), A.T) + B)`` without the copies."""
+    n, m = r.size, k.size
+    T = np.zeros((n, m))
+    for i in range(n):
+        for c in range(m):
+            a = F[r[i], k[c]]
+            for j in range(m):
+                T[i, j] += a * S[c, j]
+    U = np.zeros((n, n))
+    for i in range(n):
+        for c in range(m):
+            a = T[i, c]
+            for j in range(n):
+                U[i, j] += a * F[r[j], k[c]]
+    if add_q:
+        for i in range(n):
+            for j in range(n):
+                U[i, j] = U[i, j] + Q[r[i], r[j]]
+    for i in range(n):
+        for j in range(i, n):
+            v = 0.5 * (U[i, j] + U[j, i])
+            U[i, j] = v
+            U[j, i] = v
+    return U
+
+
+@_jit
 def kalman_increment(x, fx, F, Q, p, k, cov, phi, use_phi):
-    """:meth:`ConditionalKalman.increment` after the model call: ``(d, D, Dk, mean, cov)``."""
+    """:meth:`ConditionalKalman.increment` after the model call: ``(d, D, Dk, mean, cov)``.
+
+    With ``use_phi`` the long-run covariance ``S = X + X' - cov``, ``X = (I - phi)^-1 cov``,
+    replaces ``cov`` in ``Dk`` when it is finite, not too large and positive definite."""
     npp, nk = p.size, k.size
     d = np.empty(npp)
-    D = np.empty((npp, npp))
     for a in range(npp):
         d[a] = fx[p[a]] - x[p[a]]
-        for b in range(npp):
-            D[a, b] = Q[p[a], p[b]]
     Dk = np.zeros((npp, npp))
     mean = np.empty(nk)
     new_cov = cov
     if nk:
         S = cov
         if use_phi:
-            eye = np.eye(nk)
-            X, ok = _solve(eye - phi, cov)
+            A = np.empty((nk, nk))
+            for a in range(nk):
+                for b in range(nk):
+                    A[a, b] = (1.0 if a == b else 0.0) - phi[a, b]
+            X, ok = _solve(A, cov)
             if ok:
-                S2 = _sym(X + X.T - cov)
+                S2 = np.empty((nk, nk))  # _sym(X + X' - cov)
                 tr, trP = 0.0, 0.0
+                for a in range(nk):
+                    for b in range(nk):
+                        S2[a, b] = 0.5 * (((X[a, b] + X[b, a]) - cov[a, b])
+                                          + ((X[b, a] + X[a, b]) - cov[b, a]))
                 for a in range(nk):
                     tr += S2[a, a]
                     trP += cov[a, a]
                 if (math.isfinite(S2.sum()) and not tr > 1e6 * max(trP, 1e-300)
                         and _chol_ok(S2)):
                     S = S2
-        Fpk = np.empty((npp, nk))
-        Fkk = np.empty((nk, nk))
-        Qkk = np.empty((nk, nk))
-        for a in range(npp):
-            for b in range(nk):
-                Fpk[a, b] = F[p[a], k[b]]
         for a in range(nk):
             mean[a] = fx[k[a]]
-            for b in range(nk):
-                Fkk[a, b] = F[k[a], k[b]]
-                Qkk[a, b] = Q[k[a], k[b]]
-        Dk = _sym(_mm(_mm(Fpk, S), Fpk.T))
-        new_cov = _sym(_mm(_mm(Fkk, cov), Fkk.T) + Qkk)
-        D = D + Dk
-    return d, _sym(D), Dk, mean, new_cov
+        Dk = _sandwich(F, p, k, S, Q, False)
+        new_cov = _sandwich(F, k, k, cov, Q, True)
+    D = np.empty((npp, npp))  # _sym(Q[p][:, p] + Dk)
+    for a in range(npp):
+        for b in range(npp):
+            D[a, b] = Q[p[a], p[b]] + Dk[a, b] if nk else Q[p[a], p[b]]
+    for a in range(npp):
+        for b in range(a, npp):
+            v = 0.5 * (D[a, b] + D[b, a])
+            D[a, b] = v
+            D[b, a] = v
+    return d, D, Dk, mean, new_cov
 
 
 @_jit

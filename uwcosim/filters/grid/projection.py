@@ -274,16 +274,16 @@ class ProjectionFilter(BayesProduct, Estimator):
         _, F, Q = step.views(self.x, u, dt)  # consumed by the kernel at once
         phi = kal._phi
         use_phi = phi is not None and kal.long_run and bool(kal.k)
-        (m, lo, length, mean, cov, mass, kmean, kcov, Fkk, x, P, finite) = pk.predict_step(
+        # the predicted moments and the Kalman block are written in place (_mean, _cov,
+        # kal.mean, kal.cov, kal._F)
+        m, lo, length, mass, x, P, finite = pk.predict_step(
             self.x, step.flat[0], F, Q, kal._p_arr, kal._k_arr, kal.cov,
             phi if use_phi else kal._eye, use_phi, self.m, self.basis.lo,
-            self.basis.length, self._mean, self._cov, self.k_sigma, self.min_halfwidth)
-        kal.mean, kal.cov = kmean, kcov
-        if kal.k:
-            kal._F = Fkk
+            self.basis.length, self._mean, self._cov, self.k_sigma, self.min_halfwidth,
+            kal.mean, kal._F)
         self.m = m
         self.basis = self.basis.moved(lo, length, copy=False)  # fresh arrays from the kernel
-        self._mean, self._cov = mean, cov
+        mean, cov = self._mean, self._cov
         if math.isfinite(mass) and mass > 0:  # normalized by the kernel
             self.diagnostics["prior_mass"] = mass
             if not finite:

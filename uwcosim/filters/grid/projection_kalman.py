@@ -262,20 +262,22 @@ def assemble(nx, p, k, mean_p, cov_p, mean_k, cov_k):
 
 @_jit
 def predict_step(x, fx, F, Q, p, k, kcov, phi, use_phi, m, lo, length, mean, cov, k_sigma,
-                 min_halfwidth):
+                 min_halfwidth, kmean_out, Fkk_out):
     """One ``ProjectionFilter.predict`` (drift independent of the gridded states) after the
     model call ``(fx, F, Q)``: :func:`kalman_increment`, :func:`predict_shift` and
-    :func:`assemble` in one call. Returns ``(m, lo, length, mean, cov, mass, kmean, kcov, Fkk,
-    x, P, finite)``."""
+    :func:`assemble` in one call. Returns ``(m, lo, length, mass, x, P, finite)``; the
+    predicted moments of the gridded block are written into ``mean``, ``cov`` and the
+    velocities' mean, covariance and ``F_kk`` into ``kmean_out``, ``kcov``, ``Fkk_out``, in
+    place (fewer arrays to return: Numba boxes each one)."""
     d, D, _, kmean, kcov2 = kalman_increment(x, fx, F, Q, p, k, kcov, phi, use_phi)
     m2, lo2, len2, mean2, cov2, mass = predict_shift(m, lo, length, mean, cov, d, D, k_sigma,
                                                      min_halfwidth)
-    Fkk = np.empty((k.size, k.size))
     for a in range(k.size):
         for b in range(k.size):
-            Fkk[a, b] = F[k[a], k[b]]
+            Fkk_out[a, b] = F[k[a], k[b]]
     x2, P2, finite = assemble(x.size, p, k, mean2, cov2, kmean, kcov2)
-    return m2, lo2, len2, mean2, cov2, mass, kmean, kcov2, Fkk, x2, P2, finite
+    _write_moments(mean2, cov2, kmean, kcov2, mean, cov, kmean_out, kcov)
+    return m2, lo2, len2, mass, x2, P2, finite
 
 
 @_jit

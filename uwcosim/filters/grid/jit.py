@@ -187,3 +187,35 @@ def _min2(a):
         for j in range(m, n1):
             a0 = min(a0, a[i, j])
     return min(min(a0, a1), min(a2, a3))
+
+
+@_jit
+def _row_max(a, i):
+    """``a[i].max()`` (exact in any order; four running maxima)."""
+    n1 = a.shape[1]
+    m = n1 - n1 % 4
+    a0 = a1 = a2 = a3 = -np.inf
+    for j in range(0, m, 4):
+        a0 = max(a0, a[i, j])
+        a1 = max(a1, a[i, j + 1])
+        a2 = max(a2, a[i, j + 2])
+        a3 = max(a3, a[i, j + 3])
+    for j in range(m, n1):
+        a0 = max(a0, a[i, j])
+    return max(max(a0, a1), max(a2, a3))
+
+
+@_jit
+def _row_min(a, i):
+    """``a[i].min()`` (exact in any order; four running minima)."""
+    n1 = a.shape[1]
+    m = n1 - n1 % 4
+    a0 = a1 = a2 = a3 = np.inf
+    for j in range(0, m, 4):
+        a0 = min(a0, a[i, j])
+        a1 = min(a1, a[i, j + 1])
+        a2 = min(a2, a[i, j + 2])
+        a3 = min(a3, a[i, j + 3])
+    for j in range(m, n1):
+        a0 = min(a0, a[i, j])
+    return min(min(a0, a1), min(a2, a3))

@@ -53,6 +53,8 @@ from uwcosim.filters.grid.jit import (
     _jit_fast,
     _max2,
     _min2,
+    _row_max,
+    _row_min,
     _row_sum,
     _sum2,
     interrupted,
@@ -216,10 +218,13 @@ def from_grid2(g, Tg, Tm, scale):
     H = (M - 1) // 2
     Ge = np.empty((R, M))
     Go = np.empty((R, M))
-    for r in range(R):  # a row without mirror (0, and M/2 when M is even) as it is
+    for r in range(H + 1, R):  # the rows without mirror: 0, and M/2 when M is even
         for c in range(M):
             Ge[r, c] = g[r, c]
             Go[r, c] = g[r, c]
+    for c in range(M):
+        Ge[0, c] = g[0, c]
+        Go[0, c] = g[0, c]
     for r in range(1, H + 1):
         for c in range(M):
             Ge[r, c] = g[r, c] + g[M - r, c]
@@ -296,7 +301,9 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation, values,
     if inflate:  # twice the central differences (one-sided ones doubled)
         rx = (length[0] / (2 * K + 1) * inflation / (2.0 * length[0] / M)) ** 2 / 12.0
         ry = (length[1] / (2 * K + 1) * inflation / (2.0 * length[1] / M)) ** 2 / 12.0
-        for i in range(M):
+        vmin = np.inf
+        wmax = -np.inf
+        for i in range(M):  # row by row: V, then S and W while the row is in the cache
             i0, i1 = max(i - 1, 0), min(i + 1, M - 1)
             f = 1.0 if (i1 - i0) == 2 else 2.0
             for j in range(M):
@@ -309,13 +316,14 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation, values,
             V[i, 0] += g * g * ry
             g = 2.0 * (h[i, M - 1] - h[i, M - 2])
             V[i, M - 1] += g * g * ry
-        vmin = _min2(V)
-        for i in range(M):
+            vmin = min(vmin, _row_min(V, i))
             for j in range(M):
                 s = 1.0 / math.sqrt(V[i, j])
                 e = (h[i, j] - z) * s
                 W[i, j] = -0.5 * (e * e)
                 V[i, j] = s  # V becomes S = 1 / sqrt(V)
+            wmax = max(wmax, _row_max(W, i))
+        tmax = wmax
     else:
         vmin = var
         s = 1.0 / math.sqrt(var)
@@ -324,8 +332,10 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation, values,
                 e = (h[i, j] - z) * s
                 W[i, j] = -0.5 * (e * e)
         V[:] = s
-    tmax = _max2(W)
-    W -= tmax
+        tmax = _max2(W)
+    for i in range(M):
+        for j in range(M):
+            W[i, j] -= tmax
     return -neg * cell, tmax, vmin
 
 

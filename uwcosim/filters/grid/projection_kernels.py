@@ -6,7 +6,8 @@ case (two gridded states, a terrain-depth measurement, a drift independent of th
 the TAN model of seed 000) into a handful of compiled calls:
 
 - :func:`terrain_depth`: the bathymetry B-spline on a tensor grid (separable, 4 + 4 taps);
-- :func:`to_grid2` / :func:`from_grid2`: the series <-> grid quadratures of
+- :func:`to_grid2` / :func:`from_grid2` (in :mod:`uwcosim.filters.grid.projection_grid`,
+  re-exported here): the series <-> grid quadratures of
   :mod:`uwcosim.filters.projection_ops` with the Hermitian symmetry of the series and the
   ``n <-> M - n`` symmetry of the quadrature points folded (a quarter of the products of the
   plain transforms), as BLAS matrix products;
@@ -52,55 +53,19 @@ from uwcosim.filters.grid.jit import (
     _jit,
     _jit_fast,
     _max2,
-    _min2,
     _row_max,
     _row_min,
     _row_sum,
     _sum2,
     interrupted,
 )
-
-TWO_PI = 2.0 * np.pi
-
-
-# ---------------------------------------------------------------------------------------------
-# tables (computed once per (K, M))
-
-_TABLES: dict = {}
-
-
-def tables(K: int, M: int):
-    """Trigonometric tables of the folded transforms for ``q = -K..K`` on ``M`` points.
-
-    Both grid directions are folded by the symmetry of the points ``n`` and ``M - n`` (equal
-    cosines, opposite sines): only ``n = 0..R-1``, ``R = M // 2 + 1``, enter the products (half
-    the arithmetic). With ``C[q, n] = cos(2 pi q n / M)``, ``S`` the sines (``q = -K..K``,
-    ``n < R``) and ``C0``, ``S0`` their rows ``q = 0..K``, returns ``(Tq, Tx, Tg, Tm)``:
-    ``Tq = [C | S]`` (``(2K+1, 2R)``); ``Tx`` (``(2, M, K+1)``, ``M`` read from its shape) with
-    ``Tx[0, :R] = (w C0)'``, ``Tx[1, :R] = (w S0)'``, ``w = 1, 2, 2, ...``; ``Tg = [C', S']``
-    (``(2, R, 2K+1)``); ``Tm = [C0, S0]`` (``(2, K+1, R)``).
-    """
-    key = (K, M)
-    out = _TABLES.get(key)
-    if out is None:
-        R = M // 2 + 1
-        n = np.arange(R)
-        q = np.arange(-K, K + 1)
-        ang = TWO_PI * np.outer(q, n) / M
-        C, S = np.cos(ang), np.sin(ang)
-        Tq = np.ascontiguousarray(np.hstack([C, S]))
-        q0 = np.arange(K + 1)
-        ang0 = TWO_PI * np.outer(q0, n) / M
-        C0, S0 = np.cos(ang0), np.sin(ang0)
-        w = np.where(q0 == 0, 1.0, 2.0)[:, None]
-        Tx = np.zeros((2, M, K + 1))
-        Tx[0, :R] = (w * C0).T
-        Tx[1, :R] = (w * S0).T
-        Tg = np.ascontiguousarray(np.stack([C.T, S.T]))
-        Tm = np.ascontiguousarray(np.stack([C0, S0]))
-        out = _TABLES[key] = (Tq, Tx, Tg, Tm)
-    return out
-
+from uwcosim.filters.grid.projection_grid import (  # noqa: F401  (re-exported)
+    TWO_PI,
+    from_grid2,
+    tables,
+    to_grid2,
+    to_grid2_into,
+)
 
 # ---------------------------------------------------------------------------------------------
 # terrain
@@ -151,114 +116,6 @@ def terrain_depth(xs, ys, C, x0, y0, dx, dy, nx, ny, pad):
 
 
 # ---------------------------------------------------------------------------------------------
-# series <-> grid (two gridded states)
-
-
-@_jit
-def to_grid2(m, Tq, Tx, scale):
-    """:func:`to_grid2_into` a new ``M x M`` array."""
-    M = Tx.shape[1]
-    out = np.empty((M, M))
-    to_grid2_into(m, Tq, Tx, scale, out)
-    return out
-
-
-@_jit
-def to_grid2_into(m, Tq, Tx, scale, out):
-    """Real values on the ``M x M`` grid of the Hermitian series ``m`` (``(2K+1, 2K+1)``),
-    written into ``out``.
-
-    The rows ``q_0 >= 0`` (Hermitian symmetry), the points ``n < R`` of both directions (the
-    fold of :func:`tables`): ``A(n_1) = [m_r | m_i] (C + iS)`` from the four real products
-    ``EC = m_r C``, ``ES = m_i S``, ``FS = m_r S``, ``FC = m_i C`` (``A(M - n_1)`` flips the
-    sines), then ``P = w C0' A_r``, ``Q = w S0' A_i``: ``out[n_0] = P - Q``,
-    ``out[M - n_0] = P + Q``."""
-    K = (m.shape[0] - 1) // 2
-    n = m.shape[1]
-    M = Tx.shape[1]
-    R = M // 2 + 1
-    H = (M - 1) // 2  # points n = 1..H have a mirror M - n
-    half = np.empty((2 * (K + 1), n))
-    for j in range(K + 1):
-        for q in range(n):
-            v = m[K + j, q]
-            half[j, q] = v.real
-            half[K + 1 + j, q] = v.imag
-    E = half @ Tq  # [[EC, FS], [FC, ES]], (2(K+1), 2R)
-    Ar = np.empty((K + 1, M))
-    Ai = np.empty((K + 1, M))
-    for j in range(K + 1):
-        for c in range(R):
-            Ar[j, c] = E[j, c] - E[K + 1 + j, R + c]
-            Ai[j, c] = E[j, R + c] + E[K + 1 + j, c]
-        for c in range(1, H + 1):
-            Ar[j, M - c] = E[j, c] + E[K + 1 + j, R + c]
-            Ai[j, M - c] = E[K + 1 + j, c] - E[j, R + c]
-    P = Tx[0, :R] @ Ar
-    Q = Tx[1, :R] @ Ai
-    for r in range(R):
-        for c in range(M):
-            out[r, c] = (P[r, c] - Q[r, c]) * scale
-    for r in range(1, H + 1):
-        for c in range(M):
-            out[M - r, c] = (P[r, c] + Q[r, c]) * scale
-
-
-@_jit
-def from_grid2(g, Tg, Tm, scale):
-    """Coefficients ``<g, phi_q>`` (FFT quadrature) of real grid values ``g`` (``M x M``).
-
-    Folded as :func:`to_grid2`: the rows ``n_0`` and ``M - n_0`` of ``g`` are added (cosine
-    part) and subtracted (sine part) before the products with ``C0``, ``S0`` (``q_0 >= 0``:
-    Hermitian symmetry), then the columns of those products likewise before ``C'``, ``S'``."""
-    n = Tg.shape[2]
-    K = (n - 1) // 2
-    M = g.shape[0]
-    R = M // 2 + 1
-    H = (M - 1) // 2
-    Ge = np.empty((R, M))
-    Go = np.empty((R, M))
-    for r in range(H + 1, R):  # the rows without mirror: 0, and M/2 when M is even
-        for c in range(M):
-            Ge[r, c] = g[r, c]
-            Go[r, c] = g[r, c]
-    for c in range(M):
-        Ge[0, c] = g[0, c]
-        Go[0, c] = g[0, c]
-    for r in range(1, H + 1):
-        for c in range(M):
-            Ge[r, c] = g[r, c] + g[M - r, c]
-            Go[r, c] = g[r, c] - g[M - r, c]
-    X0 = Tm[0] @ Ge  # C0 g, (K+1, M)
-    X1 = Tm[1] @ Go  # S0 g
-    Xe = np.empty((2 * (K + 1), R))  # [C0 g; S0 g], columns folded: even, odd
-    Xo = np.empty((2 * (K + 1), R))
-    for j in range(K + 1):
-        for c in range(R):
-            Xe[j, c] = X0[j, c]
-            Xo[j, c] = X0[j, c]
-            Xe[K + 1 + j, c] = X1[j, c]
-            Xo[K + 1 + j, c] = X1[j, c]
-        for c in range(1, H + 1):
-            Xe[j, c] = X0[j, c] + X0[j, M - c]
-            Xo[j, c] = X0[j, c] - X0[j, M - c]
-            Xe[K + 1 + j, c] = X1[j, c] + X1[j, M - c]
-            Xo[K + 1 + j, c] = X1[j, c] - X1[j, M - c]
-    PC = Xe @ Tg[0]  # [C0 g C'; S0 g C'], (2(K+1), 2K+1)
-    PS = Xo @ Tg[1]  # [C0 g S'; S0 g S']
-    m = np.empty((n, n), np.complex128)
-    for j in range(K + 1):
-        for q in range(n):
-            re = PC[j, q] - PS[K + 1 + j, q]
-            im = -PS[j, q] - PC[K + 1 + j, q]
-            m[K + j, q] = complex(re * scale, im * scale)
-    for j in range(1, K + 1):
-        for q in range(n):
-            m[K - j, q] = m[K + j, n - 1 - q].conjugate()
-    return m
-
-
-# ---------------------------------------------------------------------------------------------
 # PFM-PSI update
 
 
@@ -287,6 +144,10 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation, values,
     (one-sided ones doubled) when ``inflation`` > 0, else ``V = var`` and ``ll = W + tmax``
     (:meth:`GridLikelihood._terrain_loglik`). ``W = -(S (h - z))^2 / 2``: one square root and
     one division per point serve both ``W`` and the normalization of :func:`bayes_posterior`.
+    Both in single precision (twice as fast as double), refined by two Newton steps to
+    ``1 / sqrt(V)`` within 2 ulp (not always correctly rounded; IEEE operations in a fixed
+    order, so deterministic), for the rows whose ``V`` lies in ``[1e-30, 1e30]`` (else in
+    double precision).
     """
     M = Tx.shape[1]
     K = (m.shape[0] - 1) // 2
@@ -316,12 +177,23 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation, values,
             V[i, 0] += g * g * ry
             g = 2.0 * (h[i, M - 1] - h[i, M - 2])
             V[i, M - 1] += g * g * ry
-            vmin = min(vmin, _row_min(V, i))
-            for j in range(M):
-                s = 1.0 / math.sqrt(V[i, j])
-                e = (h[i, j] - z) * s
-                W[i, j] = -0.5 * (e * e)
-                V[i, j] = s  # V becomes S = 1 / sqrt(V)
+            rmin = _row_min(V, i)
+            vmin = min(vmin, rmin)
+            if rmin >= 1e-30 and _row_max(V, i) <= 1e30:  # S from single precision
+                for j in range(M):
+                    v = V[i, j]
+                    s = np.float64(np.float32(1.0) / np.sqrt(np.float32(v)))
+                    s = s * (1.5 - (0.5 * v) * (s * s))  # Newton: 1e-7 -> 1e-14
+                    s = s * (1.5 - (0.5 * v) * (s * s))  # -> round-off
+                    e = (h[i, j] - z) * s
+                    W[i, j] = -0.5 * (e * e)
+                    V[i, j] = s  # V becomes S = 1 / sqrt(V)
+            else:
+                for j in range(M):
+                    s = 1.0 / math.sqrt(V[i, j])
+                    e = (h[i, j] - z) * s
+                    W[i, j] = -0.5 * (e * e)
+                    V[i, j] = s
             wmax = max(wmax, _row_max(W, i))
         tmax = wmax
     else:

@@ -50,13 +50,15 @@ from uwcosim.filters.grid.grid_moments import (
 )
 from uwcosim.filters.grid.jit import (
     ENABLED,
+    _col_max,
+    _col_min_max,
     _jit,
     _jit_fast,
+    _max1,
     _max2,
-    _row_max,
-    _row_min,
+    _min1,
+    _neg_sum2,
     _row_sum,
-    _sum2,
     interrupted,
 )
 from uwcosim.filters.grid.projection_grid import (  # noqa: F401  (re-exported)
@@ -146,56 +148,22 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation, values,
     one division per point serve both ``W`` and the normalization of :func:`bayes_posterior`.
     Both in single precision (twice as fast as double), refined by two Newton steps to
     ``1 / sqrt(V)`` within 2 ulp (not always correctly rounded; IEEE operations in a fixed
-    order, so deterministic), for the rows whose ``V`` lies in ``[1e-30, 1e30]`` (else in
-    double precision).
+    order, so deterministic) when all ``V`` lie in ``[1e-30, 1e30]`` (else in double
+    precision): :func:`_inflated_terms`.
     """
     M = Tx.shape[1]
     K = (m.shape[0] - 1) // 2
     scale = 1.0 / math.sqrt(length[0] * length[1])
     cell = (length[0] / M) * (length[1] / M)
     to_grid2_into(m, Tq, Tx, scale, values)
-    neg = _sum2(values, True)
+    neg = _neg_sum2(values)
     xs, ys = grid_axes(lo, length, M)
     h = terrain_depth(xs, ys, C, tpar[0], tpar[1], tpar[2], tpar[3], ipar[0], ipar[1],
                       ipar[2])
-    inflate = inflation != 0.0
-    if inflate:  # twice the central differences (one-sided ones doubled)
+    if inflation != 0.0:  # twice the central differences (one-sided ones doubled)
         rx = (length[0] / (2 * K + 1) * inflation / (2.0 * length[0] / M)) ** 2 / 12.0
         ry = (length[1] / (2 * K + 1) * inflation / (2.0 * length[1] / M)) ** 2 / 12.0
-        vmin = np.inf
-        wmax = -np.inf
-        for i in range(M):  # row by row: V, then S and W while the row is in the cache
-            i0, i1 = max(i - 1, 0), min(i + 1, M - 1)
-            f = 1.0 if (i1 - i0) == 2 else 2.0
-            for j in range(M):
-                g = f * (h[i1, j] - h[i0, j])
-                V[i, j] = g * g * rx + var
-            for j in range(1, M - 1):
-                g = h[i, j + 1] - h[i, j - 1]
-                V[i, j] += g * g * ry
-            g = 2.0 * (h[i, 1] - h[i, 0])
-            V[i, 0] += g * g * ry
-            g = 2.0 * (h[i, M - 1] - h[i, M - 2])
-            V[i, M - 1] += g * g * ry
-            rmin = _row_min(V, i)
-            vmin = min(vmin, rmin)
-            if rmin >= 1e-30 and _row_max(V, i) <= 1e30:  # S from single precision
-                for j in range(M):
-                    v = V[i, j]
-                    s = np.float64(np.float32(1.0) / np.sqrt(np.float32(v)))
-                    s = s * (1.5 - (0.5 * v) * (s * s))  # Newton: 1e-7 -> 1e-14
-                    s = s * (1.5 - (0.5 * v) * (s * s))  # -> round-off
-                    e = (h[i, j] - z) * s
-                    W[i, j] = -0.5 * (e * e)
-                    V[i, j] = s  # V becomes S = 1 / sqrt(V)
-            else:
-                for j in range(M):
-                    s = 1.0 / math.sqrt(V[i, j])
-                    e = (h[i, j] - z) * s
-                    W[i, j] = -0.5 * (e * e)
-                    V[i, j] = s
-            wmax = max(wmax, _row_max(W, i))
-        tmax = wmax
+        tmax, vmin = _inflated_terms(h, z, var, rx, ry, W, V)
     else:
         vmin = var
         s = 1.0 / math.sqrt(var)
@@ -211,12 +179,63 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation, values,
     return -neg * cell, tmax, vmin
 
 
+@_jit
+def _inflated_terms(h, z, var, rx, ry, W, V):
+    """:func:`bayes_terms`' ``V`` with resolution inflation, then ``S`` (into ``V``) and ``W``;
+    returns ``(tmax, vmin)``. The extremes are kept per column (elementwise loops, which
+    vectorize; exact in any order). ``S`` is computed in single precision and refined by two
+    Newton steps when all ``V`` lie in ``[1e-30, 1e30]``, else as ``1 / sqrt(V)`` in double."""
+    M = h.shape[0]
+    vlo = np.full(M, np.inf)  # column minima and maxima of V, maxima of W
+    vhi = np.full(M, -np.inf)
+    whi = np.full(M, -np.inf)
+    for i in range(M):
+        i0, i1 = max(i - 1, 0), min(i + 1, M - 1)
+        f = 1.0 if (i1 - i0) == 2 else 2.0
+        for j in range(1, M - 1):
+            g = f * (h[i1, j] - h[i0, j])
+            q = h[i, j + 1] - h[i, j - 1]
+            V[i, j] = (g * g * rx + var) + q * q * ry
+        for j, j0, j1 in ((0, 0, 1), (M - 1, M - 2, M - 1)):  # one-sided, doubled
+            g = f * (h[i1, j] - h[i0, j])
+            q = 2.0 * (h[i, j1] - h[i, j0])
+            V[i, j] = (g * g * rx + var) + q * q * ry
+        _col_min_max(vlo, vhi, V, i)
+    vmin = _min1(vlo)
+    single = vmin >= 1e-30 and _max1(vhi) <= 1e30
+    for i in range(M):
+        if single:
+            _inv_sqrt_row_single(h, z, W, V, i)
+        else:
+            for j in range(M):
+                s = 1.0 / math.sqrt(V[i, j])
+                e = (h[i, j] - z) * s
+                W[i, j] = -0.5 * (e * e)
+                V[i, j] = s
+        _col_max(whi, W, i)
+    return _max1(whi), vmin
+
+
+@_jit
+def _inv_sqrt_row_single(h, z, W, V, i):
+    """Row ``i`` of :func:`_inflated_terms`: ``S = 1 / sqrt(V)`` in single precision refined by
+    two Newton steps (into ``V``), ``W = -(S (h - z))^2 / 2``."""
+    for j in range(V.shape[1]):
+        v = V[i, j]
+        s = np.float64(np.float32(1.0) / np.sqrt(np.float32(v)))
+        s = s * (1.5 - (0.5 * v) * (s * s))  # Newton: 1e-7 -> 1e-14
+        s = s * (1.5 - (0.5 * v) * (s * s))  # -> round-off
+        e = (h[i, j] - z) * s
+        W[i, j] = -0.5 * (e * e)
+        V[i, j] = s  # V becomes S = 1 / sqrt(V)
+
+
 @_jit_fast
 def prior_values(m, Tq, Tx, length):
     """Grid values of the prior series and their negative mass (no grid measurement rows)."""
     M = Tx.shape[1]
     values = to_grid2(m, Tq, Tx, 1.0 / math.sqrt(length[0] * length[1]))
-    neg = _sum2(values, True)
+    neg = _neg_sum2(values)
     return values, -neg * (length[0] / M) * (length[1] / M)
 
 
@@ -290,7 +309,7 @@ def posterior_coefficients(post, Z, Tg, Tm, Tq, Tx, length, neg_limit):
     m = from_grid2(post, Tg, Tm, sv / M**2)
     m /= Z
     values = to_grid2(m, Tq, Tx, 1.0 / sv)
-    neg = -_sum2(values, True) * cell
+    neg = -_neg_sum2(values) * cell
     mass = np.nan
     if neg <= neg_limit:
         mass = hermitian_normalize(m, sv)

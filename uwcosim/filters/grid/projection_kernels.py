@@ -44,7 +44,7 @@ import numpy as np
 from uwcosim.filters.grid.grid_moments import (
     _floor_moments,
     _moments2,
-    _moments2_marginals,
+    _moments2_cols,
     grid_moments2,
     moments2,
 )
@@ -277,7 +277,7 @@ def _posterior_moments(post, m0, m1, lo, length):
     floor0 = (length[0] / M) ** 2 / 12.0
     floor1 = (length[1] / M) ** 2 / 12.0
     if math.isfinite(Z) and Z > 0.0:
-        mean, cov = _moments2_marginals(post, m0, m1, xs, ys)
+        mean, cov = _moments2_cols(post, m0, m1, xs, ys)
     else:
         s = 0.0
         for i in range(M):

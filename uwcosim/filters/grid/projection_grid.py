@@ -136,16 +136,8 @@ def from_grid2(g, Tg, Tm, scale):
     Xe = np.empty((2 * (K + 1), R))  # [C0 g; S0 g], columns folded: even, odd
     Xo = np.empty((2 * (K + 1), R))
     for j in range(K + 1):
-        for c in range(R):
-            Xe[j, c] = X0[j, c]
-            Xo[j, c] = X0[j, c]
-            Xe[K + 1 + j, c] = X1[j, c]
-            Xo[K + 1 + j, c] = X1[j, c]
-        for c in range(1, H + 1):
-            Xe[j, c] = X0[j, c] + X0[j, M - c]
-            Xo[j, c] = X0[j, c] - X0[j, M - c]
-            Xe[K + 1 + j, c] = X1[j, c] + X1[j, M - c]
-            Xo[K + 1 + j, c] = X1[j, c] - X1[j, M - c]
+        _fold_columns(Xe, Xo, j, X0, j)
+        _fold_columns(Xe, Xo, K + 1 + j, X1, j)
     PC = Xe @ Tg[0]  # [C0 g C'; S0 g C'], (2(K+1), 2K+1)
     PS = Xo @ Tg[1]  # [C0 g S'; S0 g S']
     m = np.empty((n, n), np.complex128)
@@ -158,3 +150,23 @@ def from_grid2(g, Tg, Tm, scale):
         for q in range(n):
             m[K - j, q] = m[K + j, n - 1 - q].conjugate()
     return m
+
+
+@_jit
+def _fold_columns(Xe, Xo, k, X, j):
+    """Row ``k`` of ``Xe`` / ``Xo``: sums / differences of the columns ``c`` and ``M - c`` of
+    ``X[j]`` (the columns without mirror as they are). A function of its own: its loops
+    vectorize."""
+    M = X.shape[1]
+    R = Xe.shape[1]
+    H = (M - 1) // 2
+    Xe[k, 0] = X[j, 0]
+    Xo[k, 0] = X[j, 0]
+    for c in range(1, H + 1):
+        a = X[j, c]
+        b = X[j, M - c]
+        Xe[k, c] = a + b
+        Xo[k, c] = a - b
+    for c in range(H + 1, R):
+        Xe[k, c] = X[j, c]
+        Xo[k, c] = X[j, c]

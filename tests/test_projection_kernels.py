@@ -105,6 +105,34 @@ def test_bayes_terms_match_numpy(terrain, var, inflation):
     np.testing.assert_allclose(W + tmax, ll, rtol=1e-13, atol=1e-13 * np.abs(ll).max())
 
 
+@pytest.mark.parametrize("M", [54, 64, 18])
+def test_posterior_moments_and_negative_mass_match_numpy(M):
+    """:func:`bayes_posterior`'s mass and moments (cross term summed by columns) and the
+    column-wise negative mass (``_neg_sum2``) against the numpy forms."""
+    from uwcosim.filters.grid.jit import _neg_sum2
+
+    rng = np.random.default_rng(M)
+    basis = _basis(K=4, M=M)
+    values = po.to_grid(_series(basis), basis) + 1e-7 * rng.standard_normal((M, M))
+    E = rng.random((M, M))
+    S = 0.5 + rng.random((M, M))
+    vmin = 0.7
+    post, Z, mean, cov, status = pk.bayes_posterior(values, E, S, vmin, basis.lo, basis.length)
+    ref = values * E * np.sqrt(vmin) * S
+    np.testing.assert_allclose(post, ref, rtol=1e-15, atol=0)
+    cell = np.prod(basis.length / M)
+    assert status == 0
+    assert Z == pytest.approx(ref.sum() * cell, rel=1e-13)
+    xs, ys = basis.axes()
+    w = ref / ref.sum()
+    mx, my = (w.sum(1) @ xs), (w.sum(0) @ ys)
+    d0, d1 = xs - mx, ys - my
+    ref_cov = np.array([[w.sum(1) @ d0**2, d0 @ w @ d1], [d0 @ w @ d1, w.sum(0) @ d1**2]])
+    np.testing.assert_allclose(mean, [mx, my], rtol=1e-14, atol=0)
+    np.testing.assert_allclose(cov, ref_cov, rtol=1e-11, atol=1e-12 * np.abs(ref_cov).max())
+    assert _neg_sum2(values) == pytest.approx(np.minimum(values, 0).sum(), rel=1e-13, abs=1e-300)
+
+
 def test_shift_decay_matches_reprojection_and_decay():
     basis = _basis()
     m = _series(basis)

@@ -96,25 +96,28 @@ def _spline_weights(s, n):
 @_jit
 def terrain_depth(xs, ys, C, x0, y0, dx, dy, nx, ny, pad):
     """``h[i, j] = h_d(xs[i], ys[j])``: the map's cubic B-spline (coefficients ``C[y, x]``,
-    ``pad`` padding nodes) on a tensor grid, as :meth:`TerrainGrid.depth`: ``Wx C' Wy'`` with
-    banded weight matrices over the support (two BLAS products)."""
+    ``pad`` padding nodes) on a tensor grid, as :meth:`TerrainGrid.depth`: first along ``y``
+    at the map's columns of the support (``Csub' Wy'``, one BLAS product with the banded
+    weight matrix), then the 4 taps along ``x`` per grid row (a loop that vectorizes)."""
     iu, wu = _spline_weights((xs - x0) / dx, nx)
     iv, wv = _spline_weights((ys - y0) / dy, ny)
     c0 = iu.min() - 1 + pad
     c1 = iu.max() + 3 + pad
     r0 = iv.min() - 1 + pad
     r1 = iv.max() + 3 + pad
-    Wx = np.zeros((xs.size, c1 - c0))
-    Wy = np.zeros((ys.size, r1 - r0))
-    for i in range(xs.size):
-        for a in range(4):
-            Wx[i, iu[i] + pad - 1 - c0 + a] = wu[i, a]
+    WyT = np.zeros((r1 - r0, ys.size))
     for j in range(ys.size):
         for a in range(4):
-            Wy[j, iv[j] + pad - 1 - r0 + a] = wv[j, a]
-    Csub = np.ascontiguousarray(C[r0:r1, c0:c1])  # (rows y, cols x)
-    G = Wx @ np.ascontiguousarray(Csub.T)  # (len xs, rows)
-    return G @ np.ascontiguousarray(Wy.T)
+            WyT[iv[j] + pad - 1 - r0 + a, j] = wv[j, a]
+    CsubT = np.ascontiguousarray(C[r0:r1, c0:c1].T)  # (cols x, rows y)
+    Hy = CsubT @ WyT  # (cols x, len ys)
+    h = np.empty((xs.size, ys.size))
+    for i in range(xs.size):
+        k = iu[i] + pad - 1 - c0
+        w0, w1, w2, w3 = wu[i, 0], wu[i, 1], wu[i, 2], wu[i, 3]
+        for j in range(ys.size):
+            h[i, j] = ((w0 * Hy[k, j] + w1 * Hy[k + 1, j]) + w2 * Hy[k + 2, j]) + w3 * Hy[k + 3, j]
+    return h
 
 
 # ---------------------------------------------------------------------------------------------

@@ -66,6 +66,73 @@ def test_terrain_depth_matches_grid_evaluation(terrain, L):
     assert np.max(np.abs(out - ref)) < 1e-9
 
 
+@pytest.mark.parametrize("var,inflation", [(4.0, 1.0), (4.0, 0.0), (1e31, 1.0), (1e-31, 0.0)])
+def test_bayes_terms_match_numpy(terrain, var, inflation):
+    """Prior values, ``W``, ``S = 1 / sqrt(V)`` and ``vmin`` of :func:`bayes_terms` against
+    the numpy forms; ``var = 1e31`` puts ``V`` outside the single-precision path's range (the
+    rows in double precision), ``1e-31`` (no inflation) the uniform-variance branch."""
+    basis = _basis(L=240.0)
+    m = _series(basis)
+    Tq, Tx, _, _ = pk.tables(basis.K, basis.M)
+    tg = TerrainGrid(terrain)
+    t = terrain
+    tpar = np.array([t.x0, t.y0, t.dx, t.dy])
+    ipar = np.array([t.shape[1], t.shape[0], tg.pad], dtype=np.int64)
+    M = basis.M
+    values, W, S = np.empty((M, M)), np.empty((M, M)), np.empty((M, M))
+    ax = basis.axes()
+    h = tg.depth(ax[0], ax[1])
+    assert np.max(np.abs(h - pk.terrain_depth(ax[0], ax[1], t.coefficients, *tpar, *ipar))) < 1e-9
+    h = pk.terrain_depth(ax[0], ax[1], t.coefficients, *tpar, *ipar)  # the same depths below
+    z = float(h[20, 30]) + 1.0
+    neg, tmax, vmin = pk.bayes_terms(m, Tq, Tx, basis.lo, basis.length, t.coefficients, tpar,
+                                     ipar, z, var, inflation, values, W, S)
+    ref_values = po.to_grid(m, basis)
+    assert np.allclose(values, ref_values, rtol=0, atol=1e-12 * np.abs(ref_values).max())
+    cell = np.prod(basis.length / M)
+    assert neg == pytest.approx(-np.minimum(ref_values, 0).sum() * cell, rel=1e-12, abs=1e-15)
+    V = np.full((M, M), var)
+    if inflation:
+        for d in range(2):  # twice the central differences, one-sided ones doubled
+            g = 2.0 * np.gradient(h, axis=d)
+            res = inflation * basis.length[d] / (2 * basis.K + 1)
+            V = V + g**2 * (res / (2.0 * basis.length[d] / M)) ** 2 / 12.0
+    assert vmin == pytest.approx(V.min(), rel=1e-15)
+    np.testing.assert_allclose(S, 1.0 / np.sqrt(V), rtol=1e-15, atol=0)
+    ll = -0.5 * (h - z) ** 2 / V
+    assert tmax == pytest.approx(ll.max(), rel=1e-14)
+    assert W.max() == 0.0
+    np.testing.assert_allclose(W + tmax, ll, rtol=1e-13, atol=1e-13 * np.abs(ll).max())
+
+
+@pytest.mark.parametrize("M", [54, 64, 18])
+def test_posterior_moments_and_negative_mass_match_numpy(M):
+    """:func:`bayes_posterior`'s mass and moments (cross term summed by columns) and the
+    column-wise negative mass (``_neg_sum2``) against the numpy forms."""
+    from uwcosim.filters.grid.jit import _neg_sum2
+
+    rng = np.random.default_rng(M)
+    basis = _basis(K=4, M=M)
+    values = po.to_grid(_series(basis), basis) + 1e-7 * rng.standard_normal((M, M))
+    E = rng.random((M, M))
+    S = 0.5 + rng.random((M, M))
+    vmin = 0.7
+    post, Z, mean, cov, status = pk.bayes_posterior(values, E, S, vmin, basis.lo, basis.length)
+    ref = values * E * np.sqrt(vmin) * S
+    np.testing.assert_allclose(post, ref, rtol=1e-15, atol=0)
+    cell = np.prod(basis.length / M)
+    assert status == 0
+    assert Z == pytest.approx(ref.sum() * cell, rel=1e-13)
+    xs, ys = basis.axes()
+    w = ref / ref.sum()
+    mx, my = (w.sum(1) @ xs), (w.sum(0) @ ys)
+    d0, d1 = xs - mx, ys - my
+    ref_cov = np.array([[w.sum(1) @ d0**2, d0 @ w @ d1], [d0 @ w @ d1, w.sum(0) @ d1**2]])
+    np.testing.assert_allclose(mean, [mx, my], rtol=1e-14, atol=0)
+    np.testing.assert_allclose(cov, ref_cov, rtol=1e-11, atol=1e-12 * np.abs(ref_cov).max())
+    assert _neg_sum2(values) == pytest.approx(np.minimum(values, 0).sum(), rel=1e-13, abs=1e-300)
+
+
 def test_shift_decay_matches_reprojection_and_decay():
     basis = _basis()
     m = _series(basis)

@@ -108,3 +108,30 @@ def _moments2_marginals(post, m0, m1, xs, ys):
     mean = np.array([mx, my])
     cov = np.array([[(m0 @ (d0 * d0)) / total, c01], [c01, (m1 @ (d1 * d1)) / total]])
     return mean, cov
+
+
+@_jit
+def _moments2_cols(post, m0, m1, xs, ys):
+    """:func:`_moments2_marginals` with the cross term summed by columns: ``t = d0' post``
+    (row after row, an elementwise loop that vectorizes) then ``t . d1`` in the fixed order of
+    :func:`_row_dot` (the projection filter's moments; the same to round-off)."""
+    M0, M1 = post.shape
+    total = m0.sum()
+    mx = (m0 @ xs) / total
+    my = (m1 @ ys) / total
+    d0 = xs - mx
+    d1 = ys - my
+    t = np.zeros((1, M1))
+    for i in range(M0):
+        _axpy_row(t, d0[i], post, i)
+    c01 = _row_dot(t, 0, d1) / total
+    mean = np.array([mx, my])
+    cov = np.array([[(m0 @ (d0 * d0)) / total, c01], [c01, (m1 @ (d1 * d1)) / total]])
+    return mean, cov
+
+
+@_jit
+def _axpy_row(t, a, x, i):
+    """``t[0] += a x[i]`` (a function of its own: its loop vectorizes)."""
+    for j in range(x.shape[1]):
+        t[0, j] += a * x[i, j]

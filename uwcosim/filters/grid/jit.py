@@ -187,3 +187,49 @@ def _min2(a):
         for j in range(m, n1):
             a0 = min(a0, a[i, j])
     return min(min(a0, a1), min(a2, a3))
+
+
+
+@_jit
+def _col_min_max(lo, hi, a, i):
+    """``lo = minimum(lo, a[i])``, ``hi = maximum(hi, a[i])`` in place (elementwise: a loop
+    that vectorizes, where a running extreme is a chain of dependent comparisons)."""
+    for j in range(a.shape[1]):
+        lo[j] = min(lo[j], a[i, j])
+        hi[j] = max(hi[j], a[i, j])
+
+
+@_jit
+def _col_max(hi, a, i):
+    """``hi = maximum(hi, a[i])`` in place (see :func:`_col_min_max`)."""
+    for j in range(a.shape[1]):
+        hi[j] = max(hi[j], a[i, j])
+
+
+@_jit
+def _max1(a):
+    """``a.max()`` of a 1-D array (exact in any order)."""
+    r = -np.inf
+    for j in range(a.size):
+        r = max(r, a[j])
+    return r
+
+
+@_jit
+def _min1(a):
+    """``a.min()`` of a 1-D array (exact in any order)."""
+    r = np.inf
+    for j in range(a.size):
+        r = min(r, a[j])
+    return r
+
+@_jit
+def _neg_sum2(a):
+    """``np.minimum(a, 0).sum()`` of a 2-D array: column sums (row after row, an elementwise
+    loop that vectorizes), then their sum in the fixed order of :func:`_row_sum`."""
+    n0, n1 = a.shape
+    acc = np.zeros((1, n1))
+    for i in range(n0):
+        for j in range(n1):
+            acc[0, j] += min(a[i, j], 0.0)
+    return _row_sum(acc, 0, False)

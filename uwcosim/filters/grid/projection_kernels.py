@@ -6,7 +6,8 @@ case (two gridded states, a terrain-depth measurement, a drift independent of th
 the TAN model of seed 000) into a handful of compiled calls:
 
 - :func:`terrain_depth`: the bathymetry B-spline on a tensor grid (separable, 4 + 4 taps);
-- :func:`to_grid2` / :func:`from_grid2`: the series <-> grid quadratures of
+- :func:`to_grid2` / :func:`from_grid2` (in :mod:`uwcosim.filters.grid.projection_grid`,
+  re-exported here): the series <-> grid quadratures of
   :mod:`uwcosim.filters.projection_ops` with the Hermitian symmetry of the series and the
   ``n <-> M - n`` symmetry of the quadrature points folded (a quarter of the products of the
   plain transforms), as BLAS matrix products;
@@ -43,62 +44,30 @@ import numpy as np
 from uwcosim.filters.grid.grid_moments import (
     _floor_moments,
     _moments2,
-    _moments2_marginals,
+    _moments2_cols,
     grid_moments2,
     moments2,
 )
 from uwcosim.filters.grid.jit import (
     ENABLED,
+    _col_max,
+    _col_min_max,
     _jit,
     _jit_fast,
+    _max1,
     _max2,
-    _min2,
+    _min1,
+    _neg_sum2,
     _row_sum,
-    _sum2,
     interrupted,
 )
-
-TWO_PI = 2.0 * np.pi
-
-
-# ---------------------------------------------------------------------------------------------
-# tables (computed once per (K, M))
-
-_TABLES: dict = {}
-
-
-def tables(K: int, M: int):
-    """Trigonometric tables of the folded transforms for ``q = -K..K`` on ``M`` points.
-
-    Both grid directions are folded by the symmetry of the points ``n`` and ``M - n`` (equal
-    cosines, opposite sines): only ``n = 0..R-1``, ``R = M // 2 + 1``, enter the products (half
-    the arithmetic). With ``C[q, n] = cos(2 pi q n / M)``, ``S`` the sines (``q = -K..K``,
-    ``n < R``) and ``C0``, ``S0`` their rows ``q = 0..K``, returns ``(Tq, Tx, Tg, Tm)``:
-    ``Tq = [C | S]`` (``(2K+1, 2R)``); ``Tx`` (``(2, M, K+1)``, ``M`` read from its shape) with
-    ``Tx[0, :R] = (w C0)'``, ``Tx[1, :R] = (w S0)'``, ``w = 1, 2, 2, ...``; ``Tg = [C', S']``
-    (``(2, R, 2K+1)``); ``Tm = [C0, S0]`` (``(2, K+1, R)``).
-    """
-    key = (K, M)
-    out = _TABLES.get(key)
-    if out is None:
-        R = M // 2 + 1
-        n = np.arange(R)
-        q = np.arange(-K, K + 1)
-        ang = TWO_PI * np.outer(q, n) / M
-        C, S = np.cos(ang), np.sin(ang)
-        Tq = np.ascontiguousarray(np.hstack([C, S]))
-        q0 = np.arange(K + 1)
-        ang0 = TWO_PI * np.outer(q0, n) / M
-        C0, S0 = np.cos(ang0), np.sin(ang0)
-        w = np.where(q0 == 0, 1.0, 2.0)[:, None]
-        Tx = np.zeros((2, M, K + 1))
-        Tx[0, :R] = (w * C0).T
-        Tx[1, :R] = (w * S0).T
-        Tg = np.ascontiguousarray(np.stack([C.T, S.T]))
-        Tm = np.ascontiguousarray(np.stack([C0, S0]))
-        out = _TABLES[key] = (Tq, Tx, Tg, Tm)
-    return out
-
+from uwcosim.filters.grid.projection_grid import (  # noqa: F401  (re-exported)
+    TWO_PI,
+    from_grid2,
+    tables,
+    to_grid2,
+    to_grid2_into,
+)
 
 # ---------------------------------------------------------------------------------------------
 # terrain
@@ -127,130 +96,28 @@ def _spline_weights(s, n):
 @_jit
 def terrain_depth(xs, ys, C, x0, y0, dx, dy, nx, ny, pad):
     """``h[i, j] = h_d(xs[i], ys[j])``: the map's cubic B-spline (coefficients ``C[y, x]``,
-    ``pad`` padding nodes) on a tensor grid, as :meth:`TerrainGrid.depth`: ``Wx C' Wy'`` with
-    banded weight matrices over the support (two BLAS products)."""
+    ``pad`` padding nodes) on a tensor grid, as :meth:`TerrainGrid.depth`: first along ``y``
+    at the map's columns of the support (``Csub' Wy'``, one BLAS product with the banded
+    weight matrix), then the 4 taps along ``x`` per grid row (a loop that vectorizes)."""
     iu, wu = _spline_weights((xs - x0) / dx, nx)
     iv, wv = _spline_weights((ys - y0) / dy, ny)
     c0 = iu.min() - 1 + pad
     c1 = iu.max() + 3 + pad
     r0 = iv.min() - 1 + pad
     r1 = iv.max() + 3 + pad
-    Wx = np.zeros((xs.size, c1 - c0))
-    Wy = np.zeros((ys.size, r1 - r0))
-    for i in range(xs.size):
-        for a in range(4):
-            Wx[i, iu[i] + pad - 1 - c0 + a] = wu[i, a]
+    WyT = np.zeros((r1 - r0, ys.size))
     for j in range(ys.size):
         for a in range(4):
-            Wy[j, iv[j] + pad - 1 - r0 + a] = wv[j, a]
-    Csub = np.ascontiguousarray(C[r0:r1, c0:c1])  # (rows y, cols x)
-    G = Wx @ np.ascontiguousarray(Csub.T)  # (len xs, rows)
-    return G @ np.ascontiguousarray(Wy.T)
-
-
-# ---------------------------------------------------------------------------------------------
-# series <-> grid (two gridded states)
-
-
-@_jit
-def to_grid2(m, Tq, Tx, scale):
-    """:func:`to_grid2_into` a new ``M x M`` array."""
-    M = Tx.shape[1]
-    out = np.empty((M, M))
-    to_grid2_into(m, Tq, Tx, scale, out)
-    return out
-
-
-@_jit
-def to_grid2_into(m, Tq, Tx, scale, out):
-    """Real values on the ``M x M`` grid of the Hermitian series ``m`` (``(2K+1, 2K+1)``),
-    written into ``out``.
-
-    The rows ``q_0 >= 0`` (Hermitian symmetry), the points ``n < R`` of both directions (the
-    fold of :func:`tables`): ``A(n_1) = [m_r | m_i] (C + iS)`` from the four real products
-    ``EC = m_r C``, ``ES = m_i S``, ``FS = m_r S``, ``FC = m_i C`` (``A(M - n_1)`` flips the
-    sines), then ``P = w C0' A_r``, ``Q = w S0' A_i``: ``out[n_0] = P - Q``,
-    ``out[M - n_0] = P + Q``."""
-    K = (m.shape[0] - 1) // 2
-    n = m.shape[1]
-    M = Tx.shape[1]
-    R = M // 2 + 1
-    H = (M - 1) // 2  # points n = 1..H have a mirror M - n
-    half = np.empty((2 * (K + 1), n))
-    for j in range(K + 1):
-        for q in range(n):
-            v = m[K + j, q]
-            half[j, q] = v.real
-            half[K + 1 + j, q] = v.imag
-    E = half @ Tq  # [[EC, FS], [FC, ES]], (2(K+1), 2R)
-    Ar = np.empty((K + 1, M))
-    Ai = np.empty((K + 1, M))
-    for j in range(K + 1):
-        for c in range(R):
-            Ar[j, c] = E[j, c] - E[K + 1 + j, R + c]
-            Ai[j, c] = E[j, R + c] + E[K + 1 + j, c]
-        for c in range(1, H + 1):
-            Ar[j, M - c] = E[j, c] + E[K + 1 + j, R + c]
-            Ai[j, M - c] = E[K + 1 + j, c] - E[j, R + c]
-    P = Tx[0, :R] @ Ar
-    Q = Tx[1, :R] @ Ai
-    for r in range(R):
-        for c in range(M):
-            out[r, c] = (P[r, c] - Q[r, c]) * scale
-    for r in range(1, H + 1):
-        for c in range(M):
-            out[M - r, c] = (P[r, c] + Q[r, c]) * scale
-
-
-@_jit
-def from_grid2(g, Tg, Tm, scale):
-    """Coefficients ``<g, phi_q>`` (FFT quadrature) of real grid values ``g`` (``M x M``).
-
-    Folded as :func:`to_grid2`: the rows ``n_0`` and ``M - n_0`` of ``g`` are added (cosine
-    part) and subtracted (sine part) before the products with ``C0``, ``S0`` (``q_0 >= 0``:
-    Hermitian symmetry), then the columns of those products likewise before ``C'``, ``S'``."""
-    n = Tg.shape[2]
-    K = (n - 1) // 2
-    M = g.shape[0]
-    R = M // 2 + 1
-    H = (M - 1) // 2
-    Ge = np.empty((R, M))
-    Go = np.empty((R, M))
-    for r in range(R):  # a row without mirror (0, and M/2 when M is even) as it is
-        for c in range(M):
-            Ge[r, c] = g[r, c]
-            Go[r, c] = g[r, c]
-    for r in range(1, H + 1):
-        for c in range(M):
-            Ge[r, c] = g[r, c] + g[M - r, c]
-            Go[r, c] = g[r, c] - g[M - r, c]
-    X0 = Tm[0] @ Ge  # C0 g, (K+1, M)
-    X1 = Tm[1] @ Go  # S0 g
-    Xe = np.empty((2 * (K + 1), R))  # [C0 g; S0 g], columns folded: even, odd
-    Xo = np.empty((2 * (K + 1), R))
-    for j in range(K + 1):
-        for c in range(R):
-            Xe[j, c] = X0[j, c]
-            Xo[j, c] = X0[j, c]
-            Xe[K + 1 + j, c] = X1[j, c]
-            Xo[K + 1 + j, c] = X1[j, c]
-        for c in range(1, H + 1):
-            Xe[j, c] = X0[j, c] + X0[j, M - c]
-            Xo[j, c] = X0[j, c] - X0[j, M - c]
-            Xe[K + 1 + j, c] = X1[j, c] + X1[j, M - c]
-            Xo[K + 1 + j, c] = X1[j, c] - X1[j, M - c]
-    PC = Xe @ Tg[0]  # [C0 g C'; S0 g C'], (2(K+1), 2K+1)
-    PS = Xo @ Tg[1]  # [C0 g S'; S0 g S']
-    m = np.empty((n, n), np.complex128)
-    for j in range(K + 1):
-        for q in range(n):
-            re = PC[j, q] - PS[K + 1 + j, q]
-            im = -PS[j, q] - PC[K + 1 + j, q]
-            m[K + j, q] = complex(re * scale, im * scale)
-    for j in range(1, K + 1):
-        for q in range(n):
-            m[K - j, q] = m[K + j, n - 1 - q].conjugate()
-    return m
+            WyT[iv[j] + pad - 1 - r0 + a, j] = wv[j, a]
+    CsubT = np.ascontiguousarray(C[r0:r1, c0:c1].T)  # (cols x, rows y)
+    Hy = CsubT @ WyT  # (cols x, len ys)
+    h = np.empty((xs.size, ys.size))
+    for i in range(xs.size):
+        k = iu[i] + pad - 1 - c0
+        w0, w1, w2, w3 = wu[i, 0], wu[i, 1], wu[i, 2], wu[i, 3]
+        for j in range(ys.size):
+            h[i, j] = ((w0 * Hy[k, j] + w1 * Hy[k + 1, j]) + w2 * Hy[k + 2, j]) + w3 * Hy[k + 3, j]
+    return h
 
 
 # ---------------------------------------------------------------------------------------------
@@ -282,40 +149,24 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation, values,
     (one-sided ones doubled) when ``inflation`` > 0, else ``V = var`` and ``ll = W + tmax``
     (:meth:`GridLikelihood._terrain_loglik`). ``W = -(S (h - z))^2 / 2``: one square root and
     one division per point serve both ``W`` and the normalization of :func:`bayes_posterior`.
+    Both in single precision (twice as fast as double), refined by two Newton steps to
+    ``1 / sqrt(V)`` within 2 ulp (not always correctly rounded; IEEE operations in a fixed
+    order, so deterministic) when all ``V`` lie in ``[1e-30, 1e30]`` (else in double
+    precision): :func:`_inflated_terms`.
     """
     M = Tx.shape[1]
     K = (m.shape[0] - 1) // 2
     scale = 1.0 / math.sqrt(length[0] * length[1])
     cell = (length[0] / M) * (length[1] / M)
     to_grid2_into(m, Tq, Tx, scale, values)
-    neg = _sum2(values, True)
+    neg = _neg_sum2(values)
     xs, ys = grid_axes(lo, length, M)
     h = terrain_depth(xs, ys, C, tpar[0], tpar[1], tpar[2], tpar[3], ipar[0], ipar[1],
                       ipar[2])
-    inflate = inflation != 0.0
-    if inflate:  # twice the central differences (one-sided ones doubled)
+    if inflation != 0.0:  # twice the central differences (one-sided ones doubled)
         rx = (length[0] / (2 * K + 1) * inflation / (2.0 * length[0] / M)) ** 2 / 12.0
         ry = (length[1] / (2 * K + 1) * inflation / (2.0 * length[1] / M)) ** 2 / 12.0
-        for i in range(M):
-            i0, i1 = max(i - 1, 0), min(i + 1, M - 1)
-            f = 1.0 if (i1 - i0) == 2 else 2.0
-            for j in range(M):
-                g = f * (h[i1, j] - h[i0, j])
-                V[i, j] = g * g * rx + var
-            for j in range(1, M - 1):
-                g = h[i, j + 1] - h[i, j - 1]
-                V[i, j] += g * g * ry
-            g = 2.0 * (h[i, 1] - h[i, 0])
-            V[i, 0] += g * g * ry
-            g = 2.0 * (h[i, M - 1] - h[i, M - 2])
-            V[i, M - 1] += g * g * ry
-        vmin = _min2(V)
-        for i in range(M):
-            for j in range(M):
-                s = 1.0 / math.sqrt(V[i, j])
-                e = (h[i, j] - z) * s
-                W[i, j] = -0.5 * (e * e)
-                V[i, j] = s  # V becomes S = 1 / sqrt(V)
+        tmax, vmin = _inflated_terms(h, z, var, rx, ry, W, V)
     else:
         vmin = var
         s = 1.0 / math.sqrt(var)
@@ -324,9 +175,62 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation, values,
                 e = (h[i, j] - z) * s
                 W[i, j] = -0.5 * (e * e)
         V[:] = s
-    tmax = _max2(W)
-    W -= tmax
+        tmax = _max2(W)
+    for i in range(M):
+        for j in range(M):
+            W[i, j] -= tmax
     return -neg * cell, tmax, vmin
+
+
+@_jit
+def _inflated_terms(h, z, var, rx, ry, W, V):
+    """:func:`bayes_terms`' ``V`` with resolution inflation, then ``S`` (into ``V``) and ``W``;
+    returns ``(tmax, vmin)``. The extremes are kept per column (elementwise loops, which
+    vectorize; exact in any order). ``S`` is computed in single precision and refined by two
+    Newton steps when all ``V`` lie in ``[1e-30, 1e30]``, else as ``1 / sqrt(V)`` in double."""
+    M = h.shape[0]
+    vlo = np.full(M, np.inf)  # column minima and maxima of V, maxima of W
+    vhi = np.full(M, -np.inf)
+    whi = np.full(M, -np.inf)
+    for i in range(M):
+        i0, i1 = max(i - 1, 0), min(i + 1, M - 1)
+        f = 1.0 if (i1 - i0) == 2 else 2.0
+        for j in range(1, M - 1):
+            g = f * (h[i1, j] - h[i0, j])
+            q = h[i, j + 1] - h[i, j - 1]
+            V[i, j] = (g * g * rx + var) + q * q * ry
+        for j, j0, j1 in ((0, 0, 1), (M - 1, M - 2, M - 1)):  # one-sided, doubled
+            g = f * (h[i1, j] - h[i0, j])
+            q = 2.0 * (h[i, j1] - h[i, j0])
+            V[i, j] = (g * g * rx + var) + q * q * ry
+        _col_min_max(vlo, vhi, V, i)
+    vmin = _min1(vlo)
+    single = vmin >= 1e-30 and _max1(vhi) <= 1e30
+    for i in range(M):
+        if single:
+            _inv_sqrt_row_single(h, z, W, V, i)
+        else:
+            for j in range(M):
+                s = 1.0 / math.sqrt(V[i, j])
+                e = (h[i, j] - z) * s
+                W[i, j] = -0.5 * (e * e)
+                V[i, j] = s
+        _col_max(whi, W, i)
+    return _max1(whi), vmin
+
+
+@_jit
+def _inv_sqrt_row_single(h, z, W, V, i):
+    """Row ``i`` of :func:`_inflated_terms`: ``S = 1 / sqrt(V)`` in single precision refined by
+    two Newton steps (into ``V``), ``W = -(S (h - z))^2 / 2``."""
+    for j in range(V.shape[1]):
+        v = V[i, j]
+        s = np.float64(np.float32(1.0) / np.sqrt(np.float32(v)))
+        s = s * (1.5 - (0.5 * v) * (s * s))  # Newton: 1e-7 -> 1e-14
+        s = s * (1.5 - (0.5 * v) * (s * s))  # -> round-off
+        e = (h[i, j] - z) * s
+        W[i, j] = -0.5 * (e * e)
+        V[i, j] = s  # V becomes S = 1 / sqrt(V)
 
 
 @_jit_fast
@@ -334,7 +238,7 @@ def prior_values(m, Tq, Tx, length):
     """Grid values of the prior series and their negative mass (no grid measurement rows)."""
     M = Tx.shape[1]
     values = to_grid2(m, Tq, Tx, 1.0 / math.sqrt(length[0] * length[1]))
-    neg = _sum2(values, True)
+    neg = _neg_sum2(values)
     return values, -neg * (length[0] / M) * (length[1] / M)
 
 
@@ -376,7 +280,7 @@ def _posterior_moments(post, m0, m1, lo, length):
     floor0 = (length[0] / M) ** 2 / 12.0
     floor1 = (length[1] / M) ** 2 / 12.0
     if math.isfinite(Z) and Z > 0.0:
-        mean, cov = _moments2_marginals(post, m0, m1, xs, ys)
+        mean, cov = _moments2_cols(post, m0, m1, xs, ys)
     else:
         s = 0.0
         for i in range(M):
@@ -408,7 +312,7 @@ def posterior_coefficients(post, Z, Tg, Tm, Tq, Tx, length, neg_limit):
     m = from_grid2(post, Tg, Tm, sv / M**2)
     m /= Z
     values = to_grid2(m, Tq, Tx, 1.0 / sv)
-    neg = -_sum2(values, True) * cell
+    neg = -_neg_sum2(values) * cell
     mass = np.nan
     if neg <= neg_limit:
         mass = hermitian_normalize(m, sv)

@@ -207,7 +207,7 @@ class ProjectionSettings(FilterSettings):
                                  "predicted standard deviations")
     states: list[StrictStr | StrictInt] | None = Field(None, description=_STATES)
     measurements: Measurements = Field(None, description=_MEAS)
-    grid_factor: StrictFloat = Field(3.0, ge=2, description="quadrature points per basis "
+    grid_factor: StrictFloat = Field(2.5, ge=2, description="quadrature points per basis "
                                      "function and dimension")
     positivity: Literal["auto", "none", "threshold", "clip", "product", "jackson"] = Field(
         "auto", description="treatment of negative lobes of the truncated series")

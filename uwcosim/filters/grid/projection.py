@@ -55,7 +55,7 @@ Deviations from the paper (docs/projection_filter.md):
   (``grid_factor (2K+1)``) instead of ``K`` interval points.
 
 Settings: ``K`` (highest harmonic per dimension, 10), ``k_sigma`` (4), ``states`` (gridded
-states; default from the model structure), ``measurements``, ``grid_factor`` (3),
+states; default from the model structure), ``measurements``, ``grid_factor`` (2.5),
 ``positivity`` (``"auto"``), ``neg_limit`` (0.1), ``spectral_filter`` (0 = off, else the even
 order of an exponential filter), ``long_run`` (True), ``min_halfwidth`` (0),
 ``resolution_inflation`` (1), ``refine`` (0.7; 1 = off), ``moment_match`` (True: after a
@@ -102,7 +102,7 @@ class ProjectionFilter(BayesProduct, Estimator):
         k_sigma: float = 4.0,
         states: list | None = None,
         measurements: list[str] | None = None,
-        grid_factor: float = 3.0,
+        grid_factor: float = 2.5,
         positivity: str = "auto",
         spectral_filter: float = 0.0,
         long_run: bool = True,

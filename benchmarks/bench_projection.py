@@ -61,6 +61,7 @@ def main(argv=None) -> int:
     runs = [
         ("pfm_psi", {"K": args.K}),
         ("pfm_psi", {"K": args.K, "k_sigma": 10.0}),
+        ("pfm_psi", {"K": args.K, "grid_factor": 3.0}),  # the grid before 2026-12-01 (M = 64)
         ("point_mass", {}),
         ("dead_reckoning", {}),
     ]

@@ -95,19 +95,12 @@ def _marginals2(values):
 @_jit
 def _moments2_marginals(post, m0, m1, xs, ys):
     """:func:`_moments2` (signed weights) from the marginals ``m0``, ``m1`` already summed."""
-    M0, M1 = post.shape
-    total = m0.sum()
-    mx = (m0 @ xs) / total
-    my = (m1 @ ys) / total
-    d0 = xs - mx
-    d1 = ys - my
+    total, mx, my, d0, d1 = _centred_axes(m0, m1, xs, ys)
     c01 = 0.0
-    for i in range(M0):
+    for i in range(post.shape[0]):
         c01 += d0[i] * _row_dot(post, i, d1)
     c01 /= total
-    mean = np.array([mx, my])
-    cov = np.array([[(m0 @ (d0 * d0)) / total, c01], [c01, (m1 @ (d1 * d1)) / total]])
-    return mean, cov
+    return _pack_moments(m0, m1, d0, d1, total, mx, my, c01)
 
 
 @_jit
@@ -115,16 +108,26 @@ def _moments2_cols(post, m0, m1, xs, ys):
     """:func:`_moments2_marginals` with the cross term summed by columns: ``t = d0' post``
     (row after row, an elementwise loop that vectorizes) then ``t . d1`` in the fixed order of
     :func:`_row_dot` (the projection filter's moments; the same to round-off)."""
-    M0, M1 = post.shape
+    total, mx, my, d0, d1 = _centred_axes(m0, m1, xs, ys)
+    t = np.zeros((1, post.shape[1]))
+    for i in range(post.shape[0]):
+        _axpy_row(t, d0[i], post, i)
+    c01 = _row_dot(t, 0, d1) / total
+    return _pack_moments(m0, m1, d0, d1, total, mx, my, c01)
+
+
+@_jit
+def _centred_axes(m0, m1, xs, ys):
+    """The mass (in sums), the mean and the centred axes of marginals ``m0``, ``m1``."""
     total = m0.sum()
     mx = (m0 @ xs) / total
     my = (m1 @ ys) / total
-    d0 = xs - mx
-    d1 = ys - my
-    t = np.zeros((1, M1))
-    for i in range(M0):
-        _axpy_row(t, d0[i], post, i)
-    c01 = _row_dot(t, 0, d1) / total
+    return total, mx, my, xs - mx, ys - my
+
+
+@_jit
+def _pack_moments(m0, m1, d0, d1, total, mx, my, c01):
+    """Mean and covariance from the marginals, the centred axes and the cross term."""
     mean = np.array([mx, my])
     cov = np.array([[(m0 @ (d0 * d0)) / total, c01], [c01, (m1 @ (d1 * d1)) / total]])
     return mean, cov

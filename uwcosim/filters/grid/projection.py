@@ -164,9 +164,10 @@ class ProjectionFilter(BayesProduct, Estimator):
         if self.fast:  # the fast paths' constant arguments and grid arrays (reused)
             tb = self._tables = pk.tables(self.K, M)
             self._grids = tuple(np.empty((M, M)) for _ in range(3))
-            limit = self.neg_limit if self.positivity == "auto" else math.inf
+            #: negative mass above which a positivity repair follows (the general path's)
+            self._limit = self.neg_limit if self.positivity == "auto" else math.inf
             self._bayes_const = (self.refine, self.k_sigma, self.min_halfwidth, tb[2], tb[3],
-                                 tb[0], tb[1], limit, self.x.size, self.kalman._p_arr,
+                                 tb[0], tb[1], self._limit, self.x.size, self.kalman._p_arr,
                                  self.kalman._k_arr)
             self._terrain_const: dict[int, tuple] = {}  # per terrain row, see _terrain_args
         self._fast_predict = self.fast and self.part.drift_constant
@@ -393,11 +394,10 @@ class ProjectionFilter(BayesProduct, Estimator):
         zz = _NO_Z if z is None else z
         if not rows_g:
             tb = self._tables
-            limit = self.neg_limit if self.positivity == "auto" else math.inf
             ok, neg, x, P, finite, phi, nis = pk.prior_step(
-                self.m, tb[0], tb[1], basis.lo, basis.length, limit, self.x.size, kal._p_arr,
-                kal._k_arr, kal.mean, kal.cov, H, R, c, zz, kal._rows_idx, kal._F, active,
-                self._mean, self._cov)
+                self.m, tb[0], tb[1], basis.lo, basis.length, self._limit, self.x.size,
+                kal._p_arr, kal._k_arr, kal.mean, kal.cov, H, R, c, zz, kal._rows_idx, kal._F,
+                active, self._mean, self._cov)
             if not ok:
                 return False
             diag = self._fresh_diagnostics(active, phi, nis, len(rows_k))

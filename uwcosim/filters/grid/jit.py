@@ -173,24 +173,6 @@ def _max2(a):
 
 
 @_jit
-def _min2(a):
-    """``a.min()`` of a 2-D array (exact in any order; four running minima)."""
-    n0, n1 = a.shape
-    m = n1 - n1 % 4
-    a0 = a1 = a2 = a3 = np.inf
-    for i in range(n0):
-        for j in range(0, m, 4):
-            a0 = min(a0, a[i, j])
-            a1 = min(a1, a[i, j + 1])
-            a2 = min(a2, a[i, j + 2])
-            a3 = min(a3, a[i, j + 3])
-        for j in range(m, n1):
-            a0 = min(a0, a[i, j])
-    return min(min(a0, a1), min(a2, a3))
-
-
-
-@_jit
 def _col_min_max(lo, hi, a, i):
     """``lo = minimum(lo, a[i])``, ``hi = maximum(hi, a[i])`` in place (elementwise: a loop
     that vectorizes, where a running extreme is a chain of dependent comparisons)."""

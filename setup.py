@@ -2,7 +2,7 @@
 
 Everything else is in pyproject.toml. The scenarios stay in ``scenarios/`` of the checkout (the
 tests, baselines and docs use them there); a built wheel carries a copy, found by
-:func:`uwcosim.paths.scenarios_dir` when no checkout is around. Editable installs skip the copy.
+:func:`uwcosim.core.paths.scenarios_dir` when no checkout is around. Editable installs skip the copy.
 """
 
 import shutil

@@ -29,10 +29,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from uwcosim.api import run_scenario  # noqa: E402
 from uwcosim.master.master import Master  # noqa: E402
 from uwcosim.models.terrain import synthetic_bathymetry  # noqa: E402
-from uwcosim.scenario import load_scenario  # noqa: E402
-from uwcosim.simulation import run_scenario  # noqa: E402
+from uwcosim.scenario import load_scenario, to_system  # noqa: E402
 
 SCENARIO = ROOT / "scenarios" / "tan_terrain.toml"
 STEPS = 5000
@@ -89,7 +89,7 @@ def raw_fmpy_loop(map_file: str) -> float:
 
 def master_loop(map_file: str) -> float:
     loaded = load_scenario(SCENARIO, ["estimators={}"])
-    m = Master(loaded, seed=0)
+    m = Master(to_system(loaded), seed=0)
     m.initialize({"sounder": {"mapFile": map_file}})
     a = time.perf_counter()
     m.run_until(STEPS)

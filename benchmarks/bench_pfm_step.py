@@ -31,9 +31,9 @@ def _record(scenario: str, steps: int):
     """The filter's model, initial state and per-step inputs in one co-simulation."""
     import numpy as np
 
+    from uwcosim.api import run_scenario
     from uwcosim.filters.grid.projection import ProjectionFilter
     from uwcosim.scenario import load_scenario
-    from uwcosim.simulation import run_scenario
 
     rec: dict = {"calls": []}
     init, predict, update = (ProjectionFilter.__init__, ProjectionFilter.predict,

@@ -23,7 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from uwcosim.errors import FilterDivergence  # noqa: E402
+from uwcosim.core.errors import FilterDivergence  # noqa: E402
 from uwcosim.filters.base import ESTIMATORS  # noqa: E402
 from uwcosim.models.linear import constant_velocity_model, seed001_model  # noqa: E402
 

@@ -21,24 +21,31 @@ except ImportError:  # pragma: no cover
 ROOT = Path(__file__).resolve().parents[1]
 API = ("Master", "System", "load_scenario", "run_scenario", "simulate", "evaluate", "report")
 #: modules whose every public function and method has type hints
-TYPED_MODULES = ("uwcosim", "uwcosim.simulation", "uwcosim.evaluation.summary",
-                 "uwcosim.evaluation.metrics", "uwcosim.report", "uwcosim.report.run_report",
-                 "uwcosim.report.runfiles", "uwcosim.master.master", "uwcosim.master.system",
-                 "uwcosim.master.measurement", "uwcosim.master.node", "uwcosim.runlog.recorder",
-                 "uwcosim.runlog.parquet", "uwcosim.estimator_bank", "uwcosim.master.sources",
-                 "uwcosim.master.vartypes", "uwcosim.master.varmap", "uwcosim.master.solvers",
-                 "uwcosim.master.proxy", "uwcosim.master.archive", "uwcosim.master.adapter",
-                 "uwcosim.master.graph", "uwcosim.master.binding", "uwcosim.demo",
-                 "uwcosim.plots.run_figures", "uwcosim.plots.html", "uwcosim.plots.signals",
-                 "uwcosim.plots.density_figures", "uwcosim.runguard", "uwcosim.divergence",
-                 "uwcosim.ssp.xml", "uwcosim.ssp.scenario", "uwcosim.ssp.read",
-                 "uwcosim.ssp.export", "uwcosim.verify.example1", "uwcosim.cli")
+TYPED_MODULES = ("uwcosim", "uwcosim.api", "uwcosim.run.simulate", "uwcosim.run.bank",
+                 "uwcosim.run.recorder", "uwcosim.run.density", "uwcosim.run.divergence",
+                 "uwcosim.run.factory", "uwcosim.run.preflight", "uwcosim.evaluation.summary",
+                 "uwcosim.evaluation.metrics", "uwcosim.reports.run_report",
+                 "uwcosim.reports.runfiles", "uwcosim.reports.html", "uwcosim.reports.table",
+                 "uwcosim.reports.signal_report", "uwcosim.master.master",
+                 "uwcosim.master.system", "uwcosim.master.measurement", "uwcosim.master.node",
+                 "uwcosim.master.observer", "uwcosim.master.sources", "uwcosim.master.graph",
+                 "uwcosim.runlog.parquet", "uwcosim.runlog.columns", "uwcosim.runlog.rundir",
+                 "uwcosim.fmi.vartypes", "uwcosim.fmi.varmap", "uwcosim.fmi.solvers",
+                 "uwcosim.fmi.proxy", "uwcosim.fmi.archive", "uwcosim.fmi.adapter",
+                 "uwcosim.fmi.binding", "uwcosim.core.runguard", "uwcosim.core.process",
+                 "uwcosim.core.rng", "uwcosim.demo", "uwcosim.plots.run_figures",
+                 "uwcosim.plots.html", "uwcosim.plots.signals", "uwcosim.plots.density_figures",
+                 "uwcosim.scenario.system", "uwcosim.scenario.overrides",
+                 "uwcosim.scenario.ssp.xml", "uwcosim.scenario.ssp.convert",
+                 "uwcosim.scenario.ssp.read", "uwcosim.ssp.export", "uwcosim.campaign.report",
+                 "uwcosim.campaign.html", "uwcosim.models.states", "uwcosim.verify.example1",
+                 "uwcosim.cli")
 
 
 def test_public_names_import_lazily():
     code = ("import sys, uwcosim; light = 'numpy' not in sys.modules; "
             f"from uwcosim import {', '.join(API)}; "
-            "import uwcosim.report; from uwcosim import report as r2; "
+            "import uwcosim.reports; from uwcosim import report as r2; "
             "print(light, all(callable(f) for f in (report, r2, simulate, evaluate)))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, cwd=ROOT).stdout.split()

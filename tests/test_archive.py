@@ -1,4 +1,4 @@
-"""The one FMU archive validator (uwcosim.master.archive) used by the master and `fmu info`.
+"""The one FMU archive validator (uwcosim.fmi.archive) used by the master and `fmu info`.
 
 Broken archives are made from the project's DVL FMU: a member with corrupt deflate data, an
 absolute or ``..`` member name, no binary for this platform, a shared library that does not
@@ -16,10 +16,10 @@ import zipfile
 
 import pytest
 
-from uwcosim.errors import FMUError
+from uwcosim.core.errors import FMUError
+from uwcosim.fmi.adapter import FMUAdapter
+from uwcosim.fmi.archive import archive_problems, open_description
 from uwcosim.fmu.info import fmu_info, validate
-from uwcosim.master.adapter import FMUAdapter
-from uwcosim.master.archive import archive_problems, open_description
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
 

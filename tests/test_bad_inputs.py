@@ -18,9 +18,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from uwcosim.errors import ScenarioError
+from uwcosim.core.errors import ScenarioError
 from uwcosim.scenario import load_scenario
-from uwcosim.scenario.load import parse_overrides
+from uwcosim.scenario.overrides import parse_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
 SCEN = ROOT / "scenarios" / "tan_terrain.toml"
@@ -321,7 +321,7 @@ def test_regress_warns_when_the_scenarios_differ(files, cli, tmp_path):
 
 
 def test_regress_never_passes_a_nan_tolerance_or_signal(files):
-    from uwcosim.errors import RegressionInputError
+    from uwcosim.core.errors import RegressionInputError
     from uwcosim.regress.compare import compare_logs, compare_signal
 
     for kw in ({"rtol": float("nan")}, {"atol": float("nan")}, {"ttol": float("nan")}):
@@ -407,8 +407,8 @@ def test_a_failed_campaign_run_keeps_its_log_in_the_campaign_directory(tmp_path,
 # -- long runs and divergence -----------------------------------------------------------------
 def test_sources_do_not_depend_on_the_chunk_size(tan, tmp_path, monkeypatch):
     """Noise, losses and controls drawn in chunks: the same log for any chunk size."""
+    from uwcosim.api import run_scenario
     from uwcosim.master import sources
-    from uwcosim.simulation import run_scenario
 
     sets = ["run.duration=60", 'estimators={ekf={type="ekf"}}',
             'sensors.depth.loss={model="gilbert_elliott", p_good_to_bad=0.2, '
@@ -421,8 +421,9 @@ def test_sources_do_not_depend_on_the_chunk_size(tan, tmp_path, monkeypatch):
 
 def test_a_very_long_run_does_not_allocate_its_noise_up_front(tan):
     from uwcosim.master.master import Master
+    from uwcosim.scenario import to_system
 
-    m = Master(tan(["run.duration=1e8"]))
+    m = Master(to_system(tan(["run.duration=1e8"])))
     try:
         assert m.n_steps == 100_000_000
         m.sources.row(0)
@@ -436,7 +437,7 @@ def test_a_very_long_run_does_not_allocate_its_noise_up_front(tan):
 
 
 def test_broken_covariances_are_flagged_as_divergence(tan, tmp_path):
-    from uwcosim.simulation import run_scenario
+    from uwcosim.api import run_scenario
 
     res = run_scenario(tan(["run.duration=30", "model.q_psd=[1e30,1e30,1e30,1e30]",
                             'estimators={ekf={type="ekf"}, pf={type="pf", n_particles=200},'
@@ -448,7 +449,7 @@ def test_broken_covariances_are_flagged_as_divergence(tan, tmp_path):
 
 
 def test_divergence_checks():
-    from uwcosim.divergence import DivergenceCheck, covariance_problem
+    from uwcosim.run.divergence import DivergenceCheck, covariance_problem
 
     check = DivergenceCheck((0, 1), (0.0, 10.0, 0.0, 10.0))
     x, P = np.array([1.0, 2.0]), np.eye(2)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from uwcosim.errors import MapError
+from uwcosim.core.errors import MapError
 from uwcosim.models.terrain import Bathymetry, load_map, synthetic_bathymetry
 
 

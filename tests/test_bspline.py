@@ -1,4 +1,4 @@
-"""The terrain spline is defined once (:mod:`uwcosim.bspline`); its other Python/Numba forms
+"""The terrain spline is defined once (:mod:`uwcosim.core.bspline`); its other Python/Numba forms
 (polynomial table, tensor-grid evaluation, compiled weights) agree with it to round-off.
 The C kernel of the DepthSounder FMU is checked in ``tests/test_bathymetry_kernel.py``."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from uwcosim import bspline
+from uwcosim.core import bspline
 from uwcosim.filters.grid import projection_kernels as pk
 from uwcosim.filters.grid.likelihood import TerrainGrid
 from uwcosim.models.tan import FastTerrain

@@ -11,13 +11,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from uwcosim.errors import ScenarioError
+from uwcosim.api import run_scenario
+from uwcosim.core.errors import ScenarioError
+from uwcosim.fmi.varmap import parse_offset, unit_conversion
 from uwcosim.fmu.check import check_fmu
 from uwcosim.master.master import Master
-from uwcosim.master.varmap import parse_offset, unit_conversion
+from uwcosim.master.observer import Callback
 from uwcosim.models.terrain import synthetic_bathymetry
 from uwcosim.runlog import read_log
-from uwcosim.simulation import run_scenario
+from uwcosim.scenario import to_system
 
 try:
     from thirdparty_fmus import FMI3_DIR, PYFMU_DIR, fmi3_vehicle, pythonfmu_vehicle
@@ -53,9 +55,9 @@ def map_file(tmp_path_factory):
 
 
 def _signals(loaded, map_file):
-    m = Master(loaded)
+    m = Master(to_system(loaded))
     rows = []
-    m.hooks.append(lambda m: rows.append(m.signals(SIGNALS)))
+    m.observers.append(Callback(lambda k, v: k and rows.append([v.signal(n) for n in SIGNALS])))
     m.initialize({"sounder": {"mapFile": map_file}})
     first = m.signals(SIGNALS).copy()
     m.run_until(1e9)
@@ -115,7 +117,7 @@ def test_fmi3_c_vehicle_reproduces_our_truth_with_process_noise(tan, map_file, f
     base = ["estimators={}", "run.duration=200"]
     _, ours = _signals(tan(base), map_file)
     loaded = tan([*base, *_c3(fmi3_vehicle)])
-    m = Master(loaded)
+    m = Master(to_system(loaded))
     assert m.adapters["vehicle"].fmi3 and m.adapters["vehicle"].varmap.aliases["vx"].scale == \
         pytest.approx(1 / 3.6, rel=1e-15)
     m.close()

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from uwcosim.errors import ScenarioError
+from uwcosim.api import run_scenario
+from uwcosim.core.errors import ScenarioError
 from uwcosim.runlog import read_log
-from uwcosim.simulation import run_scenario
 
 try:
     from thirdparty_fmus import PYFMU_DIR, pythonfmu_vehicle
@@ -56,7 +56,8 @@ def test_vehicle_without_noise_inputs_runs_noise_free_with_a_note(tan, tmp_path,
 
 def test_a_typo_in_a_noise_target_is_still_an_error(tan):
     from uwcosim.master.master import Master
+    from uwcosim.scenario import to_system
 
     with pytest.raises(ScenarioError, match="has no variable 'w_xx'"):
-        Master(tan(['noise.process.targets=["vehicle.w_xx", "vehicle.w_yy", "vehicle.w_vxx", '
-                    '"vehicle.w_vyy"]']))
+        Master(to_system(tan(['noise.process.targets=["vehicle.w_xx", "vehicle.w_yy", '
+                              '"vehicle.w_vxx", "vehicle.w_vyy"]'])))

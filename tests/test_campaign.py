@@ -11,7 +11,7 @@ import pytest
 from uwcosim.campaign import load_campaign
 from uwcosim.campaign.driver import run_campaign
 from uwcosim.campaign.spec import run_seed
-from uwcosim.errors import ScenarioError
+from uwcosim.core.errors import ScenarioError
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from uwcosim.errors import ScenarioError
+from uwcosim.core.errors import ScenarioError
+from uwcosim.master.observer import Callback
 from uwcosim.models.tan import control_jacobian, tan_model
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -26,10 +27,12 @@ def noisy(qpsi: float, qa: float) -> list[str]:
 def _trajectory(loaded, steps: int, names=("vehicle.x", "vehicle.y", "vehicle.vx",
                                            "vehicle.vy")) -> np.ndarray:
     from uwcosim.master.master import Master
+    from uwcosim.scenario import to_system
 
-    master = Master(loaded)
+    master = Master(to_system(loaded))
     rows = []
-    master.hooks.append(lambda m: rows.append(m.signals(list(names))))
+    master.observers.append(Callback(
+        lambda k, v: k and rows.append([v.signal(n) for n in names])))
     master.initialize()
     master.run_until(loaded.spec.run.start_time + steps * loaded.spec.run.step)
     master.close()
@@ -171,7 +174,7 @@ def test_control_noise_is_in_the_json_schema():
 
 
 def test_the_model_knows_the_control_noise_only_when_asked(tan):
-    from uwcosim.models.factory import build_model
+    from uwcosim.run.factory import build_model
 
     name = "tan_dead_reckoning.toml"  # no map needed
     on = tan([CONTROL_NOISE % (0.0025, 4e-6), 'model.control_noise="controls"'], name=name)
@@ -208,7 +211,7 @@ def test_note_when_the_truth_has_no_control_noise_inputs():
     filters' model still adds it (not that it is process noise)."""
     from types import SimpleNamespace
 
-    from uwcosim.master.varmap import noise_free_notes
+    from uwcosim.run.simulate import noise_free_notes
 
     system = SimpleNamespace(noise={
         "process": SimpleNamespace(targets=["vehicle.w_x"]),

@@ -1,10 +1,10 @@
-"""The estimator bank's scan of its estimates (uwcosim.estimate_scan): compiled and plain
+"""The estimator bank's scan of its estimates (uwcosim.run.scan): compiled and plain
 Python give the same bits, the NEES is e' S^-1 e, and every failed check leaves NaN."""
 
 import numpy as np
 import pytest
 
-from uwcosim import estimate_scan as es
+from uwcosim.run import scan as es
 
 
 def _batch(rng, k=5, n=4):
@@ -30,7 +30,7 @@ def _py(X, Ps, E, nis, monkeypatch):
 
 def _compiled(X, Ps, E, nis):
     pytest.importorskip("numba")  # loaded: the compiled path
-    from uwcosim.filters.grid import jit
+    from uwcosim.core import jit
 
     if not jit.ENABLED:
         pytest.skip("Numba disabled")
@@ -67,7 +67,7 @@ def test_each_failed_check_gives_nan_for_that_estimate_only(monkeypatch):
 
 
 def test_the_check_flags_the_estimates_the_numpy_checks_flag(monkeypatch):
-    from uwcosim.divergence import DivergenceCheck
+    from uwcosim.run.divergence import DivergenceCheck
 
     rng = np.random.default_rng(3)
     check = DivergenceCheck((0, 1), BOUND)

@@ -10,11 +10,11 @@ import pyarrow.csv as pcsv
 import pytest
 from scipy.io import loadmat
 
+from uwcosim.api import run_scenario
 from uwcosim.cli import main
 from uwcosim.export import matlab_names
 from uwcosim.runlog import read_log
 from uwcosim.scenario import load_scenario
-from uwcosim.simulation import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 

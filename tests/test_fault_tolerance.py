@@ -11,12 +11,15 @@ import time
 import numpy as np
 import pytest
 
-from uwcosim.errors import FMUError
+from uwcosim.api import run_scenario
+from uwcosim.core import process
+from uwcosim.core.errors import FMUError
+from uwcosim.fmi.proxy import ProxyAdapter
 from uwcosim.master.master import Master
-from uwcosim.master.proxy import ProxyAdapter
+from uwcosim.master.observer import Callback
 from uwcosim.models.terrain import synthetic_bathymetry
 from uwcosim.runlog import read_log
-from uwcosim.simulation import run_scenario
+from uwcosim.scenario import to_system
 
 FAULT_CHAIN = [
     'connections=[["vehicle.vx", "dvl.vx"], ["vehicle.vy", "dvl.vy"], '
@@ -56,14 +59,15 @@ def test_an_fmu_error_crosses_the_worker_boundary(tan, tmp_path):
 
 
 def test_a_crashing_worker_is_reported(tan, tmp_path):
-    def crash(master):
-        if master.k == 5:
-            os.kill(master.adapters["fault"]._proc.pid, signal.SIGKILL)
+    def crash(k, view):
+        if k == 5:  # the FMU's worker, the only one of this process
+            (worker,) = process.workers()
+            os.kill(worker.pid, signal.SIGKILL)
 
     loaded = tan([*FAULT_CHAIN, *TWO, _fault(timeout_s=5.0)])
     with pytest.raises(FMUError, match=r"FMU 'fault' \(FaultInjector.fmu\): worker process died "
                                        r"during doStep at t=5 \(exit status -9\)"):
-        run_scenario(loaded, tmp_path, figures=False, progress=crash)
+        run_scenario(loaded, tmp_path, figures=False, progress=Callback(crash))
     assert read_log(tmp_path / "log.parquet")[0]["time"].size == 6
 
 
@@ -73,10 +77,10 @@ def map_file(tmp_path_factory):
 
 
 def _states(loaded, map_file):
-    m = Master(loaded)
+    m = Master(to_system(loaded))
     rows = []
-    m.hooks.append(lambda m: rows.append(m.signals(["vehicle.x", "vehicle.y", "vehicle.vx",
-                                                    "vehicle.vy", "sounder.depth_m"])))
+    names = ["vehicle.x", "vehicle.y", "vehicle.vx", "vehicle.vy", "sounder.depth_m"]
+    m.observers.append(Callback(lambda k, v: k and rows.append([v.signal(n) for n in names])))
     m.initialize({"sounder": {"mapFile": map_file}})
     kinds = {n: type(a) for n, a in m.adapters.items()}
     m.run_until(1e9)

@@ -11,11 +11,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from uwcosim.errors import FilterDivergence, FMUError, RunInterrupted, ScenarioError, UwcosimError
+from uwcosim.api import run_scenario
+from uwcosim.core.errors import (
+    FilterDivergence,
+    FMUError,
+    RunInterrupted,
+    ScenarioError,
+    UwcosimError,
+)
 from uwcosim.filters import ESTIMATORS
 from uwcosim.filters.kalman import ExtendedKalmanFilter
+from uwcosim.master.observer import Callback
 from uwcosim.runlog import read_log
-from uwcosim.simulation import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -52,12 +59,13 @@ def test_nan_from_an_fmu_is_reported(tan, tmp_path):
 
 
 def test_ctrl_c_flushes_the_log(tan, tmp_path):
-    def interrupt(master):
-        if master.k == 10:
+    def interrupt(k, view):
+        if k == 10:
             raise KeyboardInterrupt
 
     with pytest.raises(RunInterrupted, match="interrupted at t=10"):
-        run_scenario(tan(["run.duration=100"]), tmp_path, figures=False, progress=interrupt)
+        run_scenario(tan(["run.duration=100"]), tmp_path, figures=False,
+                     progress=Callback(interrupt))
     assert _rows(tmp_path / "log.parquet") == 11
 
 

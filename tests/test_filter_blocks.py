@@ -15,7 +15,7 @@ ESTIMATORS = ['estimators={ekf={type="ekf"}, ukf={type="ukf"}, pf={type="pf", n_
 
 
 def _run(tan, tmp_path, block, extra=()):
-    from uwcosim.simulation import run_scenario
+    from uwcosim.api import run_scenario
 
     out = tmp_path / f"block{block}"
     res = run_scenario(tan(["run.duration=150", f"run.filter_block={block}",
@@ -72,9 +72,9 @@ def test_divergence_inside_a_block_is_flagged_at_the_same_step(tan, tmp_path):
 def test_row_groups_are_written_as_their_last_step_is_co_simulated(tan, tmp_path, monkeypatch):
     """Blocks end with the log's row groups: a row group is written (and kept after a kill)
     as soon as its last step is co-simulated, with its estimates, not a block later."""
+    from uwcosim.api import run_scenario
     from uwcosim.master.master import Master
     from uwcosim.runlog.parquet import RunLogger
-    from uwcosim.simulation import run_scenario
 
     now = [float("nan")]
     step = Master.step

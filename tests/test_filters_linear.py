@@ -7,7 +7,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from uwcosim.errors import ScenarioError
+from uwcosim.core.errors import ScenarioError
 from uwcosim.evaluation.metrics import anees, nees
 from uwcosim.filters import particle, sigma_point, variational  # noqa: F401  (register)
 from uwcosim.filters.base import ESTIMATORS

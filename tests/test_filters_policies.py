@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from uwcosim.errors import ScenarioError
+from uwcosim.core.errors import ScenarioError
 from uwcosim.filters.policies import POLICIES, lagrange_extrapolate
 
 NAN = np.nan

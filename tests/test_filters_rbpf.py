@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from uwcosim.errors import ScenarioError
+from uwcosim.core.errors import ScenarioError
 from uwcosim.evaluation.density import gaussian_on_grid, particles_on_grid
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.filters.grid.point_mass import hellinger

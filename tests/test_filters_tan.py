@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from uwcosim.errors import FilterDivergence
+from uwcosim.core.errors import FilterDivergence
 from uwcosim.filters import particle, sigma_point, variational  # noqa: F401  (register)
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.filters.kalman import ExtendedKalmanFilter

@@ -168,7 +168,7 @@ def test_qivbf_equals_vbakf_without_losses_and_extrapolates_lost_components():
 
 @pytest.mark.parametrize("name", ["vbakf", "qivbf"])
 def test_settings_are_checked(name):
-    from uwcosim.errors import ScenarioError
+    from uwcosim.core.errors import ScenarioError
 
     model = seed001_model()
     cls = ESTIMATORS.get(name)

@@ -14,7 +14,7 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from uwcosim.errors import FMUError
+from uwcosim.core.errors import FMUError
 from uwcosim.fmu import build_fmu, build_fmus, fmu_info, validate
 from uwcosim.fmu.build import compile_shared, is_up_to_date, prepare, targets
 from uwcosim.fmu.specs import MODELS

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from uwcosim.errors import AlgebraicLoopError
+from uwcosim.core.errors import AlgebraicLoopError
 from uwcosim.master.graph import stepping_order
 from uwcosim.runlog import RunLogger, read_log
 

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from tests.browser import find_chromium, load_page
+from uwcosim.api import run_scenario
 from uwcosim.cli import main
 from uwcosim.runlog import read_log
 from uwcosim.scenario import load_scenario
-from uwcosim.simulation import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -8,10 +8,12 @@ import numpy as np
 import pytest
 
 from tests.conftest import SCENARIOS
+from uwcosim.api import run_scenario
 from uwcosim.master.master import Master
+from uwcosim.master.observer import Callback
 from uwcosim.models.terrain import synthetic_bathymetry
 from uwcosim.runlog import read_log
-from uwcosim.simulation import run_scenario
+from uwcosim.scenario import to_system
 
 VARIANTS = [
     pytest.param("AUVKinematics_fmi2.fmu", "cs", id="fmi2-cs"),
@@ -38,10 +40,10 @@ def map_file(tmp_path_factory):
 
 
 def _run(loaded, map_file, until=None):
-    m = Master(loaded)
+    m = Master(to_system(loaded))
     rows = []
-    m.hooks.append(lambda m: rows.append((m.t, *m.signals(["vehicle.x", "vehicle.y",
-                                                           "vehicle.vx", "vehicle.vy"]))))
+    m.observers.append(Callback(lambda k, v: k and rows.append(
+        (v.t, *(v.signal(f"vehicle.{s}") for s in ("x", "y", "vx", "vy"))))))
     m.initialize({"sounder": {"mapFile": map_file}})
     m.run_until(until if until is not None else 1e9)
     m.close()
@@ -88,10 +90,10 @@ def test_me_continuous_controls_and_adaptive_solver(tan, map_file):
 
 def test_multi_rate_sensor_and_step_api(tan, map_file):
     loaded = tan([*QUIET, "sensors.depth.period=3", "fmus.sounder.period=3"])
-    m = Master(loaded)
+    m = Master(to_system(loaded))
     m.initialize({"sounder": {"mapFile": map_file}})
     seen = []
-    m.hooks.append(lambda m: seen.append((m.k, m.signal("sounder.depth_m"))))
+    m.observers.append(Callback(lambda k, v: seen.append((k, v.signal("sounder.depth_m")))))
     m.step()
     m.step()
     assert m.k == 2 and m.t == pytest.approx(2.0)
@@ -172,7 +174,7 @@ def test_lost_measurement_scenario_through_the_cv_fmu(project_fmus, tmp_path):
 def test_reused_master_gives_the_same_log_as_a_fresh_one(tan, tmp_path):
     """Campaign workers reset FMU instances between runs instead of instantiating again."""
     loaded = tan(["run.duration=100"])
-    m = Master(loaded)
+    m = Master(to_system(loaded))
     try:
         run_scenario(loaded, tmp_path / "r1", seed=5, figures=False, master=m)
         first = dict(m.adapters["vehicle"].__dict__)

@@ -14,9 +14,9 @@ import fmpy
 import numpy as np
 import pytest
 
-from uwcosim.errors import FMUError
-from uwcosim.master.adapter import FMUAdapter
-from uwcosim.master.proxy import ProxyAdapter
+from uwcosim.core.errors import FMUError
+from uwcosim.fmi.adapter import FMUAdapter
+from uwcosim.fmi.proxy import ProxyAdapter
 
 try:
     from event_fmus import VERSIONS, ball_exact, event_fmus

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from uwcosim.master.observer import Callback
 from uwcosim.models.auv_equations import vehicle_ode
 
 rumoca = pytest.importorskip("rumoca", reason="rumoca (Modelica compiler) not installed")
@@ -196,7 +197,7 @@ def test_modelica_matches_vehicle_fmu_through_master(harness, harness_run, proje
     velocity bound below) and to well under 1e-6 m in position.
     """
     from uwcosim.master.master import Master
-    from uwcosim.scenario import load_scenario
+    from uwcosim.scenario import load_scenario, to_system
 
     psi_rate = _parameter(harness, "psiRate")
     a_amp = _parameter(harness, "aAmplitude")
@@ -211,10 +212,10 @@ def test_modelica_matches_vehicle_fmu_through_master(harness, harness_run, proje
          f"{psi_rate * T_END}]]", f"controls.a.table=[{a_table}]",
          "sensors.dvl.sigma=[0.0, 0.0]", "sensors.depth.sigma=[0.0]"],
     )
-    master = Master(loaded)
+    master = Master(to_system(loaded))
     rows = []
-    master.hooks.append(lambda m: rows.append(m.signals(["vehicle.x", "vehicle.y",
-                                                         "vehicle.vx", "vehicle.vy"])))
+    master.observers.append(Callback(lambda k, v: k and rows.append(
+        [v.signal(f"vehicle.{s}") for s in ("x", "y", "vx", "vy")])))
     master.initialize({"sounder": {"mapFile": ""}})
     master.run_until(T_END)
     master.close()

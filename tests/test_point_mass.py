@@ -6,7 +6,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from uwcosim.errors import ScenarioError
+from uwcosim.core.errors import ScenarioError
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.filters.grid.point_mass import (
     PointMassFilter,

@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from uwcosim.errors import ScenarioError
+from uwcosim.core.errors import ScenarioError
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.filters.grid.point_mass import PointMassFilter, gaussian_convolve, hellinger
 from uwcosim.filters.grid.projection import ProjectionFilter
@@ -233,7 +233,7 @@ def test_tan_table1_divergences_regression(tan, tmp_path, run, seed, duration):
     (0/0), and before that had trimmed the tails of an elongated posterior until the box missed
     the truth. Now the filter runs on, consistent, and (run 11) as accurate as the point-mass
     reference: measured RMSE 21.3 against 18.3 m, ANEES 1.3 (run 85: ANEES 1.0)."""
-    from uwcosim.simulation import run_scenario
+    from uwcosim.api import run_scenario
 
     over = [f"run.duration={duration}", "output.density_snapshots=[]",
             'estimators={pfm_psi={type="pfm_psi", K=10}, point_mass={type="point_mass"}}']

@@ -109,7 +109,7 @@ def test_bayes_terms_match_numpy(terrain, var, inflation):
 def test_posterior_moments_and_negative_mass_match_numpy(M):
     """:func:`bayes_posterior`'s mass and moments (cross term summed by columns) and the
     column-wise negative mass (``_neg_sum2``) against the numpy forms."""
-    from uwcosim.filters.grid.jit import _neg_sum2
+    from uwcosim.core.jit import _neg_sum2
 
     rng = np.random.default_rng(M)
     basis = _basis(K=4, M=M)

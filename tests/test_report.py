@@ -15,11 +15,12 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
+from uwcosim.api import run_scenario
 from uwcosim.cli import main
-from uwcosim.errors import FMUError
+from uwcosim.core.errors import FMUError
+from uwcosim.master.observer import Callback
 from uwcosim.runlog import read_log
 from uwcosim.scenario import load_scenario
-from uwcosim.simulation import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "tan_terrain.toml"
@@ -49,7 +50,7 @@ def _no_live_objects(monkeypatch):
 
     monkeypatch.setattr("uwcosim.scenario.load.load_scenario", refuse)
     monkeypatch.setattr("uwcosim.master.master.Master.__init__", refuse)
-    monkeypatch.setattr("uwcosim.models.factory.build_model", refuse)
+    monkeypatch.setattr("uwcosim.run.factory.build_model", refuse)
 
 
 def _table(report: Path) -> list[str]:
@@ -191,7 +192,7 @@ def test_set_paths_are_relative_to_the_current_folder(project_fmus, tmp_path, mo
 
 
 def test_build_hint_only_for_the_projects_own_fmus(tmp_path):
-    from uwcosim.master.adapter import read_description
+    from uwcosim.fmi.adapter import read_description
 
     with pytest.raises(FMUError, match="uwcosim fmu build"):
         read_description(tmp_path / "AUVKinematics.fmu")
@@ -208,14 +209,15 @@ def test_report_of_a_campaign_without_results(tmp_path, capsys):
 
 def test_report_of_an_interrupted_run(project_fmus, tmp_path, capsys):
     """A run stopped by Ctrl-C at t=30 keeps its log; the report stage makes its report."""
-    from uwcosim.errors import RunInterrupted
+    from uwcosim.core.errors import RunInterrupted
 
-    def interrupt(master):
-        if master.k == 30:
+    def interrupt(k, view):
+        if k == 30:
             raise KeyboardInterrupt
 
     with pytest.raises(RunInterrupted):
-        run_scenario(load_scenario(SCENARIO, ["run.duration=100"]), tmp_path, progress=interrupt)
+        run_scenario(load_scenario(SCENARIO, ["run.duration=100"]), tmp_path,
+                     progress=Callback(interrupt))
     assert not (tmp_path / "report.md").exists()
     assert main(["report", str(tmp_path), "--html"]) == 0
     text = (tmp_path / "report.md").read_text()

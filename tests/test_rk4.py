@@ -1,4 +1,4 @@
-"""RK4 is written once in Python (:func:`uwcosim.integrators.rk4`, numeric and CasADi); the C
+"""RK4 is written once in Python (:func:`uwcosim.core.integrators.rk4`, numeric and CasADi); the C
 template's co-simulation step (``rk4`` in ``uwc_model.c``) is tested against it here, on a
 nonlinear test model (a pendulum) for which RK4 is not exact."""
 
@@ -7,9 +7,9 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from uwcosim.core.integrators import rk4
 from uwcosim.fmu import build_fmu, specs
 from uwcosim.fmu.specs import ModelSpec, Var
-from uwcosim.integrators import rk4
 from uwcosim.models.auv_equations import rk4_step
 
 try:

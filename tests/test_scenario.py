@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from uwcosim.errors import ScenarioError
+from uwcosim.core.errors import ScenarioError
 from uwcosim.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -109,8 +109,8 @@ def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 120.0) -> Non
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory, project_fmus):
     """The uninterrupted run of the same scenario (columns of its log)."""
+    from uwcosim.api import run_scenario
     from uwcosim.scenario import load_scenario
-    from uwcosim.simulation import run_scenario
 
     out = tmp_path_factory.mktemp("ref")
     loaded = load_scenario(SCEN, [SETS[i] for i in range(1, len(SETS), 2)])

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from uwcosim.master.sources import loss_mask, stream, white_noise
-from uwcosim.scenario.schema import BernoulliLoss, GilbertElliottLoss
+from uwcosim.core.rng import stream
+from uwcosim.master.sources import loss_mask, white_noise
+from uwcosim.master.system import BernoulliLoss, GilbertElliottLoss
 
 
 def test_streams_are_reproducible_and_independent():

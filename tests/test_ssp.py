@@ -16,14 +16,14 @@ import numpy as np
 import pytest
 import tomli_w
 
+from uwcosim.api import run_scenario
 from uwcosim.cli import main
-from uwcosim.errors import ScenarioError
-from uwcosim.master.adapter import sha256_file
+from uwcosim.core.errors import ScenarioError
+from uwcosim.fmi.adapter import sha256_file
 from uwcosim.master.master import Master
 from uwcosim.runlog import read_log
-from uwcosim.scenario import load_scenario
-from uwcosim.simulation import run_scenario
-from uwcosim.ssp import read_ssp
+from uwcosim.scenario import load_scenario, to_system
+from uwcosim.scenario.ssp.read import read_ssp
 
 ROOT = Path(__file__).resolve().parents[1]
 NS = ('xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '
@@ -278,7 +278,7 @@ def test_linear_transformations_and_unit_conversions(project_fmus, tmp_path):
     assert conns["fi1.u"].factor == pytest.approx(1e-3) and conns["fi1.u"].offset == 0.0
     assert (conns["fi2.u"].factor, conns["fi2.u"].offset) == (1.0, 273.15)
     assert (conns["fi3.u"].factor, conns["fi3.u"].offset) == (3.0, 0.0)
-    m = Master(loaded)
+    m = Master(to_system(loaded))
     try:
         m.initialize()
         for _ in range(3):
@@ -298,7 +298,7 @@ def test_connection_factor_offset_in_a_toml_scenario(tan):
                   "['vehicle.vy', 'dvl.vy'], ['vehicle.x', 'sounder.x'], "
                   "['vehicle.y', 'sounder.y']]", "run.duration=5", "estimators={}",
                   "sensors.dvl.sigma=[0.0, 0.0]"])
-    m = Master(loaded)
+    m = Master(to_system(loaded))
     try:
         m.initialize()
         m.run_until(5.0)

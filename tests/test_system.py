@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from uwcosim.cli import main
+from uwcosim.master.observer import Callback
 from uwcosim.runlog import read_log
 
 try:
@@ -297,8 +298,8 @@ def test_system_built_in_code_as_in_the_readme(event_fmus):
                     step=0.01, duration=3.0)
     m = Master(system, seed=1)
     rows = []
-    m.hooks.append(lambda m: rows.append((m.t, m.value("ball.h"), m.value("ft.yk"),
-                                          m.value("ft.iy"), m.value("ball.bounces"))))
+    m.observers.append(Callback(lambda k, v: k and rows.append(
+        (v.t, v.value("ball.h"), v.value("ft.yk"), v.value("ft.iy"), v.value("ball.bounces")))))
     try:
         m.initialize()
         m.run_until(3.0)

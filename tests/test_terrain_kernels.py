@@ -14,7 +14,7 @@ import sys
 import numpy as np
 import pytest
 
-from uwcosim.filters.grid import jit
+from uwcosim.core import jit
 from uwcosim.models.tan import tan_model
 from uwcosim.models.terrain import synthetic_bathymetry
 

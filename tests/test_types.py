@@ -1,4 +1,4 @@
-"""Every FMI variable type through the adapter (uwcosim.master.vartypes, binding, adapter).
+"""Every FMI variable type through the adapter (uwcosim.fmi.vartypes, binding, adapter).
 
 The TypedBlock test FMU (tests/data/event_fmus) has inputs and outputs of every FMI 3 type
 (FMI 2: Real/Integer/Boolean/String/Enumeration), a discrete Float64 input, a String parameter
@@ -14,9 +14,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from uwcosim.errors import FMUError, ScenarioError
-from uwcosim.master.adapter import FMUAdapter
-from uwcosim.master.vartypes import (
+from uwcosim.core.errors import FMUError, ScenarioError
+from uwcosim.fmi.adapter import FMUAdapter
+from uwcosim.fmi.vartypes import (
     arrow_type,
     coerce,
     connection_problem,

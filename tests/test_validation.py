@@ -12,11 +12,11 @@ from typing import get_args
 
 import pytest
 
-from uwcosim.errors import ScenarioError
+from uwcosim.core.errors import ScenarioError
 from uwcosim.filters import ESTIMATORS
 from uwcosim.filters.settings import settings_model
+from uwcosim.run.preflight import check_scenario
 from uwcosim.scenario import load_scenario
-from uwcosim.scenario.validate import check_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SCEN = ROOT / "scenarios" / "tan_terrain.toml"

@@ -2,7 +2,8 @@
 
 - estimators: every registered filter, the first line of its docstring and its settings (its
   settings model, :mod:`uwcosim.filters.settings`): name, type, default and description;
-- scenarios: the shipped scenarios (:func:`uwcosim.paths.scenarios_dir`), name and description;
+- scenarios: the shipped scenarios (:func:`uwcosim.core.paths.scenarios_dir`), name and
+  description;
 - fmus: the project's FMU models, their description, and the built archives found in ``fmus/``
   of the checkout or the demo's cache folder.
 """
@@ -62,7 +63,7 @@ def list_estimators() -> str:
 
 
 def list_scenarios(directory: Path | None = None) -> str:
-    from uwcosim.paths import scenarios_dir
+    from uwcosim.core.paths import scenarios_dir
 
     directory = Path(directory) if directory is not None else scenarios_dir()
     lines = []
@@ -78,9 +79,9 @@ def list_scenarios(directory: Path | None = None) -> str:
 
 
 def list_fmus() -> str:
+    from uwcosim.core.paths import cache_dir, project_root
     from uwcosim.fmu.build import FMI_VERSIONS, archive_name
     from uwcosim.fmu.specs import MODELS
-    from uwcosim.paths import cache_dir, project_root
 
     places = [d for d in ((project_root() or Path("/nonexistent")) / "fmus",
                           cache_dir() / "fmus") if d.is_dir()]

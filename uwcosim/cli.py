@@ -19,12 +19,12 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
-from uwcosim import __version__
-from uwcosim.errors import UwcosimError
+from uwcosim.core.errors import UwcosimError
+from uwcosim.core.version import __version__
 
 
 def _print_result(result) -> None:
-    from uwcosim.plots.run_figures import results_table
+    from uwcosim.reports.table import results_table
 
     s = result.summary
     if s["estimators"]:
@@ -44,8 +44,9 @@ def _print_result(result) -> None:
 
 
 def _cmd_run(args) -> int:
+    from uwcosim.api import run_scenario
+    from uwcosim.runlog.rundir import prepare_out_dir
     from uwcosim.scenario import load_scenario
-    from uwcosim.simulation import prepare_out_dir, run_scenario
 
     loaded = load_scenario(args.scenario, args.set or [], overrides_base=Path.cwd())
     out = Path(args.out) if args.out else Path("runs") / loaded.path.stem
@@ -55,7 +56,7 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_check(args) -> int:
-    from uwcosim.scenario.validate import check_scenario
+    from uwcosim.run.preflight import check_scenario
 
     report = check_scenario(args.scenario, args.set or [], overrides_base=Path.cwd())
     for p in report.problems:
@@ -112,7 +113,7 @@ def _cmd_completion(args) -> int:
 
 
 def _cmd_report(args) -> int:
-    from uwcosim.report import report
+    from uwcosim.api import report
 
     print(report(args.run, args.out, html=args.html))
     return 0
@@ -267,7 +268,7 @@ SET_HELP = ("override any scenario key with a TOML value, e.g. --set run.duratio
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from uwcosim.paths import baselines_dir, scenarios_dir
+    from uwcosim.core.paths import baselines_dir, scenarios_dir
 
     p = _Parser(prog="uwcosim", description=__doc__.splitlines()[0])
     p.add_argument("--version", action="version", version=f"uwcosim {__version__}",
@@ -435,7 +436,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from uwcosim.runguard import install_cli_handlers, signal_name
+    from uwcosim.core.runguard import install_cli_handlers, signal_name
 
     args = build_parser().parse_args(argv)
     level = max(logging.DEBUG, min(logging.WARNING + 10 * (args.quiet - args.verbose),

@@ -1,54 +1,18 @@
-"""The one small error hierarchy of uwcosim.
+"""Deprecated alias of :mod:`uwcosim.core.errors` (the error hierarchy moved to the core layer
+in 0.2; import from ``uwcosim.core.errors``). Kept so that ``from uwcosim.errors import ...``
+in user code keeps working."""
 
-User errors (bad scenario, bad FMU, bad map...) are subclasses of :class:`UwcosimError`; the CLI
-catches them once and prints a single line with a non-zero exit status.
-"""
+from uwcosim.core.errors import (
+    AlgebraicLoopError,
+    FilterDivergence,
+    FilterError,
+    FMUError,
+    MapError,
+    RegressionInputError,
+    RunInterrupted,
+    ScenarioError,
+    UwcosimError,
+)
 
-
-class UwcosimError(Exception):
-    """Base class of every error uwcosim raises on purpose."""
-
-    exit_code = 1
-
-
-class ScenarioError(UwcosimError):
-    """A scenario file or override is invalid (names the file, the key and what was expected)."""
-
-    exit_code = 2
-
-
-class FMUError(UwcosimError):
-    """An FMU is missing, corrupt, for another platform, or failed during a run."""
-
-    exit_code = 3
-
-
-class MapError(UwcosimError):
-    """A bathymetry map cannot be read or is unusable."""
-
-    exit_code = 2
-
-
-class FilterError(UwcosimError):
-    """An estimator was misconfigured or diverged beyond repair."""
-
-
-class AlgebraicLoopError(ScenarioError):
-    """The connection graph between FMUs contains a loop of direct-feedthrough variables."""
-
-
-class RunInterrupted(UwcosimError):
-    """The run was interrupted (Ctrl-C); the log written so far was flushed."""
-
-    exit_code = 130
-
-
-class FilterDivergence(FilterError):
-    """An estimator produced NaN or a covariance not positive definite beyond repair."""
-
-
-class RegressionInputError(UwcosimError):
-    """Bad input to a regression comparison: missing or unreadable log, no common signals,
-    time ranges that do not overlap (exit status 2)."""
-
-    exit_code = 2
+__all__ = ["AlgebraicLoopError", "FMUError", "FilterDivergence", "FilterError", "MapError",
+           "RegressionInputError", "RunInterrupted", "ScenarioError", "UwcosimError"]

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
-from uwcosim.errors import UwcosimError
+from uwcosim.core.errors import UwcosimError
 
 MATLAB_NAME_MAX = 63
 

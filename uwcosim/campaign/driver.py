@@ -4,7 +4,7 @@
 variant's scenario file, overrides and content hash) and its sha256; ``--resume`` refuses a
 directory whose fingerprint differs, naming what changed. An interrupted campaign (Ctrl-C,
 SIGTERM, SIGHUP) aggregates what finished, marks ``report.md`` partial, and raises
-:class:`~uwcosim.errors.RunInterrupted` (exit status 128 + signal).
+:class:`~uwcosim.core.errors.RunInterrupted` (exit status 128 + signal).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from uwcosim.campaign.aggregate import (
 )
 from uwcosim.campaign.execute import pending_tasks, run_tasks
 from uwcosim.campaign.spec import LoadedCampaign
-from uwcosim.errors import RunInterrupted, ScenarioError, UwcosimError
+from uwcosim.core.errors import RunInterrupted, ScenarioError, UwcosimError
 
 MANIFEST = "campaign.json"
 
@@ -107,7 +107,7 @@ def run_campaign(campaign: LoadedCampaign, out: Path, runs: int | None = None,
     if interrupted is not None:
         signum = getattr(interrupted, "signum", None)
         code = 128 + signum if signum else getattr(interrupted, "exit_code", 130)
-        from uwcosim.runguard import signal_name
+        from uwcosim.core.runguard import signal_name
 
         by = f" by {signal_name(code - 128)}" if code > 128 else ""
         err = RunInterrupted(f"campaign interrupted{by}: {summary['runs']} of {len(tasks)} "

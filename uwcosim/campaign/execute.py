@@ -24,7 +24,11 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from uwcosim.campaign.spec import Task
-from uwcosim.errors import RunInterrupted, ScenarioError, UwcosimError
+from uwcosim.core.errors import RunInterrupted, ScenarioError, UwcosimError
+from uwcosim.core.process import die_with_parent
+from uwcosim.master.master import Master
+from uwcosim.run.simulate import run_scenario
+from uwcosim.scenario import load_scenario, to_system
 
 _SCENARIOS: dict = {}  # per worker process: (path, overrides) -> LoadedScenario
 _MASTERS: dict = {}  # per worker process: (path, overrides) -> Master (FMU instances reused)
@@ -33,11 +37,9 @@ _MASTERS: dict = {}  # per worker process: (path, overrides) -> Master (FMU inst
 def _master_for(key, loaded):
     """The worker's master of this scenario: its FMUs are instantiated once and reset between
     runs when they allow several instances (otherwise a fresh master per run)."""
-    from uwcosim.master.master import Master
-
     m = _MASTERS.get(key)
     if m is None:
-        m = Master(loaded)
+        m = Master(to_system(loaded))
         if not all(_reusable(a) for a in m.adapters.values()):
             return None, m
         _MASTERS[key] = m
@@ -51,9 +53,6 @@ def _reusable(adapter) -> bool:
 
 def execute_run(task: Task) -> dict:
     """Run one task and return its record (never raises: errors are recorded)."""
-    from uwcosim.scenario import load_scenario
-    from uwcosim.simulation import run_scenario
-
     record = {"variant": task.variant, "run": task.run, "seed": task.seed, "status": "ok",
               "error": "", "estimators": {}}
     started = (time.perf_counter(), time.process_time())
@@ -117,7 +116,6 @@ def _worker_init(parent: int) -> None:
     """Pool worker: die with the campaign, leave signals to it."""
     import signal
 
-    from uwcosim.master.proxy import die_with_parent
 
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(s, signal.SIG_IGN)

@@ -25,9 +25,10 @@ from pathlib import Path
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from uwcosim.errors import ScenarioError
-from uwcosim.scenario.load import format_validation_error, load_scenario
-from uwcosim.tomlfile import read_toml
+from uwcosim.core.errors import ScenarioError
+from uwcosim.core.tomlfile import read_toml
+from uwcosim.scenario.load import load_scenario
+from uwcosim.scenario.validate import format_validation_error
 
 
 class Variant(BaseModel):

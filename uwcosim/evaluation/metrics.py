@@ -24,16 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.special import gammaincinv
 
-_POSITION = (("x", "y"), ("px", "py"))
-_VELOCITY = (("vx", "vy"),)
-
-
-def position_velocity_indices(state_names: Sequence[str]) -> tuple[list[int], list[int]]:
-    """Indices of the position and velocity states from their names (TAN or CV order)."""
-    names = list(state_names)
-    pos = next(([names.index(a) for a in p] for p in _POSITION if set(p) <= set(names)), [])
-    vel = next(([names.index(a) for a in v] for v in _VELOCITY if set(v) <= set(names)), [])
-    return pos, vel
+from uwcosim.models.states import position_velocity_indices
 
 
 def rmse(err: np.ndarray) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 :func:`evaluate` reads ``log.parquet`` (or its journal after ``kill -9``) with its ``uwcosim``
 metadata, and ``simulation.json`` (written by the simulate stage,
-:func:`uwcosim.simulation.simulate`: status, error, termination, wall times, the estimators'
+:func:`uwcosim.run.simulate.simulate`: status, error, termination, wall times, the estimators'
 time per step and divergence reasons, notes). No scenario is loaded and no FMU is touched.
 
 Per estimator: position and velocity RMSE of the run (seed 000 eq. 56 with ST = 1: the root of
@@ -22,19 +22,17 @@ by older versions), or, without either (a run killed hard), has status ``unknown
 
 from __future__ import annotations
 
-import json
-import os
 import tomllib
 from pathlib import Path
 
 import numpy as np
 
-from uwcosim.errors import UwcosimError
+from uwcosim.core.errors import UwcosimError
 from uwcosim.evaluation.metrics import chi2_ppf, run_rmse
-from uwcosim.runlog import read_log
+from uwcosim.runlog import columns, read_log
+from uwcosim.runlog.rundir import SIMULATION_FILE, read_json, write_json
+from uwcosim.scenario.overrides import apply_override, parse_overrides
 
-#: what the simulate stage writes next to the log (status, timing, ...)
-SIMULATION_FILE = "simulation.json"
 #: keys of a summary that come from the simulation (not from the log's metrics)
 _ESTIMATOR_RUN_KEYS = ("time_per_step_s", "time_per_step_p95_s", "total_time_s", "error")
 
@@ -42,18 +40,18 @@ _ESTIMATOR_RUN_KEYS = ("time_per_step_s", "time_per_step_p95_s", "total_time_s",
 def estimator_metrics(cols: dict, name: str, truth: list[str], states: list[str]) -> dict:
     """Metrics of estimator ``name`` from log columns (rows 1.. are the filtered steps)."""
     X = np.stack([cols[t] for t in truth], axis=1)[1:]
-    E = np.stack([cols[f"est.{name}.{s}"] for s in states], axis=1)[1:]
+    E = np.stack([cols[columns.estimate(name, s)] for s in states], axis=1)[1:]
     out = run_rmse(X, E, states)
-    nees = cols[f"est.{name}.nees"][1:]
+    nees = cols[columns.nees(name)][1:]
     nees = nees[np.isfinite(nees)]
     nx = len(states)
     out["anees"] = float(np.mean(nees) / nx) if nees.size else float("nan")
     if nees.size:
         lo, hi = chi2_ppf(np.array([0.025, 0.975]), nx)
         out["nees_in_95_band"] = float(np.mean((nees >= lo) & (nees <= hi)))
-    nis = cols[f"est.{name}.nis"][1:]
+    nis = cols[columns.nis(name)][1:]
     out["mean_nis"] = float(np.nanmean(nis)) if np.isfinite(nis).any() else float("nan")
-    diverged = cols.get(f"est.{name}.diverged")
+    diverged = cols.get(columns.diverged(name))
     out["diverged"] = bool(diverged is not None and diverged.any())
     if out["diverged"]:
         out["diverged_at_s"] = float(cols["time"][np.argmax(diverged)])
@@ -62,12 +60,10 @@ def estimator_metrics(cols: dict, name: str, truth: list[str], states: list[str]
 
 def _model_truth_from_text(meta: dict) -> list[str]:
     """``[model] truth`` of the logged scenario text with the logged overrides applied."""
-    from uwcosim.scenario.load import _apply, parse_overrides
-
     try:
         data = tomllib.loads(meta.get("scenario_text", ""))
         for keys, value in parse_overrides(meta.get("overrides", []), "log"):
-            _apply(data, keys, value, "log")
+            apply_override(data, keys, value, "log")
     except (tomllib.TOMLDecodeError, UwcosimError):
         return []
     truth = (data.get("model") or {}).get("truth") or []
@@ -78,11 +74,8 @@ def log_names(cols: dict, meta: dict) -> tuple[list[str], list[str], list[str], 
     """``(estimators, states, truth signals, notes)`` of a log: from its metadata, or for an
     older log from the column names (``est.NAME.var.STATE``) and the logged scenario text. The
     truth is empty when some of its signals are not in the log (a note says which)."""
-    names = [c[4:-4] for c in cols if c.startswith("est.") and c.endswith(".nis")]
-    states: list[str] = []
-    if names:
-        prefix = f"est.{names[0]}.var."
-        states = [c[len(prefix):] for c in cols if c.startswith(prefix)]
+    names = columns.estimators_in(cols)
+    states = columns.states_in(cols, names[0]) if names else []
     if "estimators" in meta:
         names = list(meta["estimators"])
     states = list(meta.get("states", states))
@@ -98,25 +91,6 @@ def log_names(cols: dict, meta: dict) -> tuple[list[str], list[str], list[str], 
     return names, states, truth, notes
 
 
-def write_json(path: Path, data: dict) -> None:
-    """Write ``data`` to ``path`` atomically (a reader never sees half a file)."""
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, sort_keys=True))
-    os.replace(tmp, path)
-
-
-def _read_json(path: Path) -> dict | None:
-    if not path.is_file():
-        return None
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise UwcosimError(f"{path}: not a readable JSON file ({exc})") from None
-    if not isinstance(data, dict):
-        raise UwcosimError(f"{path}: expected a JSON object")
-    return data
-
-
 def _without_metrics(summary: dict) -> dict:
     """What an older ``summary.json`` says about the simulation (its metrics are recomputed)."""
     out = dict(summary)
@@ -129,14 +103,14 @@ def evaluate(run_dir: str | Path, out: str | Path | None = None, write: bool = T
     """The summary of the run in ``run_dir`` from its files alone; written to
     ``summary.json`` in ``out`` (default: the run directory) unless ``write`` is false.
 
-    Raises :class:`~uwcosim.errors.UwcosimError` when ``run_dir`` holds neither a log nor a
+    Raises :class:`~uwcosim.core.errors.UwcosimError` when ``run_dir`` holds neither a log nor a
     ``simulation.json``."""
     run_dir = Path(run_dir)
     log_path = run_dir / "log.parquet"
-    sim = _read_json(run_dir / SIMULATION_FILE)
+    sim = read_json(run_dir / SIMULATION_FILE)
     notes: list[str] = []
     if sim is None:
-        old = _read_json(run_dir / "summary.json")
+        old = read_json(run_dir / "summary.json")
         if old is not None:
             sim = _without_metrics(old)
     has_log = log_path.is_file() or log_path.with_name(log_path.name + ".journal").is_file()

@@ -17,45 +17,23 @@ declared in :mod:`uwcosim.filters.settings` (:meth:`Estimator.from_settings` che
 (the subset of measurement names a filter uses), per-step diagnostics (reset when a step begins,
 i.e. at ``predict``, or at ``update`` when no ``predict`` came before it; ``pd_repairs`` always,
 ``nis``/``nis_dof`` after an update with data, plus each filter's own) and finiteness checks that
-raise :class:`~uwcosim.errors.FilterDivergence`. A filter uses the model it is given: which
+raise :class:`~uwcosim.core.errors.FilterDivergence`. A filter uses the model it is given: which
 implementation that is (CasADi, or the closed-form TAN model) is chosen where the model is built
-(:mod:`uwcosim.models.factory`); no filter imports :mod:`uwcosim.models`.
+(:mod:`uwcosim.run.factory`); no filter imports :mod:`uwcosim.models`.
 """
 
 from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
-from uwcosim.errors import ScenarioError
+from uwcosim.core.errors import ScenarioError
+from uwcosim.core.registry import Registry
 from uwcosim.filters.numerics import check_finite
-from uwcosim.registry import Registry
-
-
-class StateSpaceModel(Protocol):
-    """Discrete-time model ``x' = f(x, u, dt) + noise``, ``z = h(x) + v`` seen by the filters.
-
-    ``F``, ``H`` are Jacobians; ``Q(x, u, dt)`` the discrete process covariance and ``R`` the
-    measurement covariance over the full measurement vector (components named in
-    ``measurement_names``). Batch forms take ``X`` of shape ``(N, nx)``.
-    """
-
-    nx: int
-    nz: int
-    state_names: tuple[str, ...]
-    measurement_names: tuple[str, ...]
-    R: np.ndarray
-
-    def f(self, x: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray: ...
-    def F(self, x: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray: ...
-    def Q(self, x: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray: ...
-    def h(self, x: np.ndarray) -> np.ndarray: ...
-    def H(self, x: np.ndarray) -> np.ndarray: ...
-    def f_batch(self, X: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray: ...
-    def h_batch(self, X: np.ndarray) -> np.ndarray: ...
+from uwcosim.models.protocol import StateSpaceModel
 
 
 class Estimator(ABC):

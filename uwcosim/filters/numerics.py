@@ -17,7 +17,7 @@ import math
 import numpy as np
 from scipy.linalg import lapack
 
-from uwcosim.errors import FilterDivergence
+from uwcosim.core.errors import FilterDivergence
 
 JITTER_START = 1e-12
 JITTER_STEPS = 8  # 1e-12 ... 1e-5 relative to the mean diagonal

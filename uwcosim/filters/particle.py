@@ -45,10 +45,10 @@ from collections.abc import Callable
 import numpy as np
 from scipy.linalg import solve_triangular
 
-from uwcosim.errors import FilterDivergence, ScenarioError
+from uwcosim.core.errors import FilterDivergence, ScenarioError
+from uwcosim.core.registry import Registry
 from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.numerics import cholesky, psd_factor, repair_pd
-from uwcosim.registry import Registry
 
 Resampler = Callable[[np.ndarray, np.random.Generator], np.ndarray]
 RESAMPLERS: Registry[Resampler] = Registry("resampling scheme")

@@ -25,7 +25,7 @@ from collections import deque
 
 import numpy as np
 
-from uwcosim.registry import Registry
+from uwcosim.core.registry import Registry
 
 POLICIES: Registry[type] = Registry("lost-measurement policy")
 

@@ -53,7 +53,7 @@ import math
 import numpy as np
 from scipy.linalg import lapack
 
-from uwcosim.errors import FilterDivergence
+from uwcosim.core.errors import FilterDivergence
 from uwcosim.filters import rbpf_kernels as rk
 from uwcosim.filters.base import register
 from uwcosim.filters.numerics import (

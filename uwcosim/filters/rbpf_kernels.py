@@ -13,8 +13,8 @@ RaoBlackwellizedPF` does in some thirty numpy calls on 4x4 matrices and 1000-par
 
 Same maths as the numpy code (see that module's docstrings), different rounding: the small
 products are loops, the per-particle work runs row by row over the particles (vectorizable)
-and the sums over particles are :func:`~uwcosim.filters.grid.jit._row_dot`'s fixed-order
-partial sums (IEEE, no fast-math, registered with :func:`~uwcosim.filters.grid.jit._jit`
+and the sums over particles are :func:`~uwcosim.core.jit._row_dot`'s fixed-order
+partial sums (IEEE, no fast-math, registered with :func:`~uwcosim.core.jit._jit`
 like the grid filters' kernels: the same bits whether compiled afresh or loaded from the
 cache). A matrix that is not positive definite is reported (return code) before anything
 is written to the particles; the filter then runs its numpy code, with its repairs, for that
@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 
-from uwcosim.filters.grid.jit import ENABLED, _jit, _row_dot
+from uwcosim.core.jit import ENABLED, _jit, _row_dot
 
 __all__ = ["ENABLED", "predict_step", "update_step"]
 

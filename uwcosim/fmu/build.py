@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
-from uwcosim.errors import FMUError
+from uwcosim.core.errors import FMUError
 from uwcosim.fmu.codegen import GUID_PLACEHOLDER, config_header, equations_c
 from uwcosim.fmu.model_description import generation_tool, model_description
 from uwcosim.fmu.specs import DEFAULT_MAP_FILE, DEFAULT_MAP_SEED, MODELS, get_spec

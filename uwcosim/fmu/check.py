@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from uwcosim.errors import FMUError, ScenarioError
-from uwcosim.master.varmap import (
+from uwcosim.core.errors import FMUError, ScenarioError
+from uwcosim.fmi.varmap import (
     ROLES,
     VariableMap,
     fmu_unit,
@@ -91,7 +91,7 @@ def me_solver_lines(path: Path, md, timeout_s: float, report: CheckReport) -> No
     Event indicators are read from the model description; time events are known only after
     initialization, so an FMU without event indicators is initialized (default parameters) in
     a worker process to see whether it defines a time event."""
-    from uwcosim.master.proxy import ProxyAdapter
+    from uwcosim.fmi.proxy import ProxyAdapter
 
     nz = int(md.numberOfEventIndicators or 0)
     nx = int(md.numberOfContinuousStates or 0)
@@ -174,7 +174,7 @@ def smoke_run(path: Path, entries: dict, role: str, interface: str, duration: fl
               step: float, timeout_s: float, report: CheckReport,
               where: tuple[str, str] = ("", "")) -> None:
     """Run the FMU for ``duration`` s with constant inputs; add lines/problems to ``report``."""
-    from uwcosim.master.proxy import ProxyAdapter
+    from uwcosim.fmi.proxy import ProxyAdapter
 
     ad = ProxyAdapter("check", path, interface, "rk4", 4, 1e-8, timeout_s)
     try:

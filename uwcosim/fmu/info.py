@@ -1,16 +1,16 @@
 """Describe and check FMUs: :func:`fmu_info` (a readable summary) and :func:`validate`.
 
 Works on any FMI 2.0 / 3.0 FMU, not only the ones :mod:`uwcosim.fmu.build` produces. The
-archive checks are those of the master (:mod:`uwcosim.master.archive`).
+archive checks are those of the master (:mod:`uwcosim.fmi.archive`).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from uwcosim.errors import FMUError
-from uwcosim.master.archive import archive_problems, binary_problems, read_model
-from uwcosim.master.vartypes import describe
+from uwcosim.core.errors import FMUError
+from uwcosim.fmi.archive import archive_problems, binary_problems, read_model
+from uwcosim.fmi.vartypes import describe
 
 
 def _yes(flag) -> str:

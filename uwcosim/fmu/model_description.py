@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
-from uwcosim import __version__
+from uwcosim.core.version import __version__
 from uwcosim.fmu.specs import UNITS, ModelSpec, Variable, dependencies, layout
 
 _CAUSALITY = {

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from uwcosim.errors import FMUError
+from uwcosim.core.errors import FMUError
 from uwcosim.models.auv_equations import dvl_output, noisy_controls, vehicle_ode
 from uwcosim.models.cv_equations import constant_velocity_ode
 

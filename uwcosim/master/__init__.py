@@ -1,23 +1,30 @@
-"""The co-simulation master: FMU adapters, connection graph, sources and the stepping loop.
+"""The system layer: the co-simulation master, its input and what observes it.
+
+The system's types (:mod:`uwcosim.master.system`: ``System``, ``FMU``, ``Control``, ``Noise``,
+``Sensor``, the loss models), the connection graph (``graph``), one FMU on the bus (``node``),
+the sources (``sources``), the sensors and measurements (``measurement``), the wiring checks
+(``checks``), the stepping loop (``master``) and the observer protocol (``observer``). It
+imports only :mod:`uwcosim.core` and :mod:`uwcosim.fmi`, and knows no scenario.
 
 ``from uwcosim.master import Master, System, FMU, Control, Noise, Sensor`` builds and runs a
-system in code (see :mod:`uwcosim.master.system`); ``Master.measurement()`` gives the step's
-:class:`Measurement` from the master's :class:`SensorBank`. The names are imported on first
-use.
+system in code; ``Master.measurement()`` gives the step's :class:`Measurement` from the
+master's :class:`SensorBank`. The names are imported on first use.
 """
 
-_EXPORTS = {"Master": "uwcosim.master.master", "System": "uwcosim.master.system",
-            "FMU": "uwcosim.master.system", "Control": "uwcosim.master.system",
-            "Noise": "uwcosim.master.system", "Sensor": "uwcosim.master.system",
-            "Measurement": "uwcosim.master.measurement",
-            "SensorBank": "uwcosim.master.measurement"}
+import importlib
+
+_EXPORTS = {
+    **{name: "uwcosim.master.system" for name in (
+        "System", "FMU", "Control", "Noise", "Sensor", "BernoulliLoss", "GilbertElliottLoss")},
+    "Master": "uwcosim.master.master",
+    "Measurement": "uwcosim.master.measurement", "SensorBank": "uwcosim.master.measurement",
+    **{name: "uwcosim.master.observer" for name in ("Observer", "StepView", "Callback")},
+}
 
 __all__ = list(_EXPORTS)
 
 
 def __getattr__(name: str):
-    if name in _EXPORTS:
-        import importlib
-
+    if name in _EXPORTS:  # imported on first use: importing the package stays light
         return getattr(importlib.import_module(_EXPORTS[name]), name)
     raise AttributeError(f"module 'uwcosim.master' has no attribute {name!r}")

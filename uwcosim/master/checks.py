@@ -1,9 +1,10 @@
 """The checks that wire a system to its FMUs: variables, causalities, types, drivers.
 
 :class:`SystemChecks` is a mixin of :class:`~uwcosim.master.master.Master`: each check raises a
-one-line :class:`~uwcosim.errors.ScenarioError` naming the key, and :meth:`SystemChecks._collect`
-records it and goes on, so that ``uwcosim check`` reports every problem at once. A check about
-an FMU that could not be opened is skipped (that FMU's problem is already reported).
+one-line :class:`~uwcosim.core.errors.ScenarioError` naming the key, and
+:meth:`SystemChecks._collect` records it and goes on, so that ``uwcosim check`` reports every
+problem at once. A check about an FMU that could not be opened is skipped (that FMU's problem is
+already reported).
 """
 
 from __future__ import annotations
@@ -11,9 +12,9 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from uwcosim.errors import ScenarioError, UwcosimError
-from uwcosim.master import vartypes
-from uwcosim.master.varmap import connection_affine
+from uwcosim.core.errors import ScenarioError, UwcosimError
+from uwcosim.fmi import vartypes
+from uwcosim.fmi.varmap import connection_affine
 
 
 class _Skipped(Exception):
@@ -50,7 +51,8 @@ class SystemChecks:
             raise ScenarioError(self._no_variable(fmu, var, key))
         return v
 
-    def _slot(self, signal: str, key: str) -> int:
+    def slot(self, signal: str, key: str) -> int:
+        """The bus slot of the output ``signal``, or a one-line ScenarioError naming ``key``."""
         if signal not in self.slots:
             v = self._variable(signal, key)
             what = "an output" if v.causality != "output" else "an output of a supported type"
@@ -59,7 +61,7 @@ class SystemChecks:
         return self.slots[signal]
 
     def _numeric_slot(self, signal: str, key: str) -> int:
-        slot = self._slot(signal, key)
+        slot = self.slot(signal, key)
         v = self.out_vars.get(signal)
         if v is not None and vartypes.kind(v) == "string":
             raise ScenarioError(f"{self._where(key)}: {signal!r} is a String output; "
@@ -93,7 +95,7 @@ class SystemChecks:
         key = f"connections[{i}]"
         if len(conn) > 2:
             self.transforms[dst] = connection_affine(conn[2], f"{self._where(key)}")
-        self._slot(src, key)
+        self.slot(src, key)
         self._check_input(dst, key, drivers, src)
         dvar = self._variable(dst, key)
         svar = self.out_vars.get(src)  # None: a source of the master (a float)

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from fmpy.model_description import ModelDescription
 
-from uwcosim.errors import AlgebraicLoopError
+from uwcosim.core.errors import AlgebraicLoopError
 
 
 def feedthrough(md: ModelDescription) -> dict[str, set[str]]:

@@ -1,28 +1,33 @@
 """The master algorithm: builds the FMU network of a system and steps it.
 
 The master's input is a :class:`~uwcosim.master.system.System` (FMUs, connections, sources,
-sensors, time grid); a loaded scenario is converted to one. Time is an integer count of base
-steps: ``t = t0 + k*h``, never accumulated. Each FMU runs at an integer multiple ``period`` of
-``h``; FMUs are stepped Gauss-Seidel in dependency order. Signals live in one flat float64
+sensors, time grid); the scenario layer converts a scenario into one
+(:func:`uwcosim.scenario.system.to_system`): the master knows no scenario. Time is an integer count
+of base steps: ``t = t0 + k*h``, never accumulated. Each FMU runs at an integer multiple ``period``
+of ``h``; FMUs are stepped Gauss-Seidel in dependency order. Signals live in one flat float64
 array, the *bus*: every FMU output and every source has a slot, and each FMU input reads a slot.
-Integer and Boolean values travel on the bus as float64 (exact up to 2**53); String outputs
-have a slot (NaN) and their text in :attr:`Master.text`. Sources (controls, noise) are sampled
-from the master's seeded streams in chunks as the run goes (memory does not depend on the
-duration); closed-loop sources (waypoints) are evaluated per step. The sensors (sampling, loss,
-noise, the measurement vector) are the master's :class:`~uwcosim.master.measurement.SensorBank`
+Integer and Boolean values travel on the bus as float64 (exact up to 2**53); String outputs have a
+slot (NaN) and their text in :attr:`Master.text`. Sources (controls, noise) are sampled from the
+master's seeded streams in chunks as the run goes (memory does not depend on the duration);
+closed-loop sources (waypoints) are evaluated per step. The sensors (sampling, loss, noise, the
+measurement vector) are the master's :class:`~uwcosim.master.measurement.SensorBank`
 (:attr:`Master.sensors`, :meth:`Master.measurement`); one FMU bound to the bus is a
 :class:`~uwcosim.master.node.Node`.
 
 An FMU that asks to stop (FMI 2 ``fmi2Terminated``, FMI 3 ``terminateSimulation``) ends the run:
 :attr:`Master.terminated` holds who, when and why, and :meth:`Master.run_until` returns (or,
-with ``stop_on_terminate = "error"``, :class:`~uwcosim.errors.FMUError` is raised).
+with ``stop_on_terminate = "error"``, :class:`~uwcosim.core.errors.FMUError` is raised).
 
 The master owns the folder the FMU archives are unzipped to; :meth:`Master.close` deletes it.
 
+What watches the run is an :class:`~uwcosim.master.observer.Observer` (``on_step(k, view)``
+with a read-only :class:`~uwcosim.master.observer.StepView`), called by :meth:`Master.notify`
+at the start time and after every step, in the order added.
+
 Step-by-step API::
 
-    m = Master(system_or_loaded_scenario, seed=3)
-    m.hooks.append(lambda m: print(m.t, m.signal("vehicle.x")))
+    m = Master(system, seed=3)
+    m.observers.append(PrintX())   # class PrintX: def on_step(self, k, view): ...
     m.initialize()
     m.run_until(100.0)       # or m.step() repeatedly
     m.close()
@@ -30,41 +35,35 @@ Step-by-step API::
 
 from __future__ import annotations
 
+import math
 import shutil
 import tempfile
 import time
 from collections.abc import Callable
 from multiprocessing import util as mp_util
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from uwcosim.errors import FMUError, ScenarioError, UwcosimError
-from uwcosim.master import vartypes
-from uwcosim.master.adapter import FMUAdapter
+from uwcosim.core.errors import FMUError, ScenarioError, UwcosimError
+from uwcosim.fmi import vartypes
+from uwcosim.fmi.adapter import FMUAdapter
+from uwcosim.fmi.proxy import ProxyAdapter
+from uwcosim.fmi.varmap import ROLES, load_entries
 from uwcosim.master.checks import SystemChecks
 from uwcosim.master.graph import stepping_order
 from uwcosim.master.measurement import Measurement, SensorBank
 from uwcosim.master.node import Node, build_node
-from uwcosim.master.proxy import ProxyAdapter
+from uwcosim.master.observer import Observer, StepView
 from uwcosim.master.sources import (
     StageInputs,
     TableControl,
     WaypointHeading,
     control_problem,
+    noise_free_sources,
     sample_sources,
 )
-from uwcosim.master.system import System, Termination, from_scenario
-
-if TYPE_CHECKING:
-    from uwcosim.scenario.load import LoadedScenario
-
-from uwcosim.master.varmap import (
-    ROLES,
-    load_entries,
-    noise_free_sources,
-)
+from uwcosim.master.system import System, Termination
 
 
 def _remove_tree(path: str) -> None:
@@ -72,22 +71,20 @@ def _remove_tree(path: str) -> None:
 
 
 class Master(SystemChecks):
-    """Co-simulation of one system (or loaded scenario) with one seed."""
+    """Co-simulation of one system with one seed."""
 
-    def __init__(self, system: System | LoadedScenario, seed: int | None = None,
+    def __init__(self, system: System, seed: int | None = None,
                  workdir: Path | None = None, check_only: bool = False) -> None:
         """``check_only``: open the FMUs' model descriptions and check the system against them,
         collecting every problem in :attr:`problems` (instead of raising the first); nothing
-        is built to run (``uwcosim check``, :mod:`uwcosim.scenario.validate`)."""
+        is built to run (``uwcosim check``, :mod:`uwcosim.run.preflight`)."""
+        if not isinstance(system, System):
+            raise TypeError(f"Master takes a uwcosim.master.System, got {type(system).__name__} "
+                            f"(a loaded scenario: uwcosim.scenario.to_system(loaded))")
         self.check_only = check_only
         #: the problems found while building (UwcosimError instances)
         self.problems: list[UwcosimError] = []
         self._broken: set[str] = set()  # FMUs that could not be opened
-        if isinstance(system, System):
-            self.loaded, self.spec = None, None
-        else:  # a LoadedScenario: estimators and the logger read its spec
-            self.loaded, self.spec = system, system.spec
-            system = from_scenario(system)
         self.system = system
         self.seed = system.seed if seed is None else int(seed)
         self.h = float(system.step)
@@ -98,13 +95,16 @@ class Master(SystemChecks):
             raise ScenarioError(f"{self._where('run.duration')}: must be a whole number of "
                                 f"steps of {self.h:g} s (got {system.duration:g})")
         self.k = 0
-        self.hooks: list[Callable[[Master], None]] = []
+        #: what watches the run (:meth:`notify`), in the order called
+        self.observers: list[Observer] = []
+        self._view: StepView | None = None
         self.workdir = workdir
         self.master_time_s = 0.0
         self.terminated: Termination | None = None
         self._initialized = False
+        self._stopped_inside = False  # an FMU stopped the run between two grid times
         #: the FMU call in progress: (fmu, call, t, time.monotonic() at its start), or None
-        #: (read by the run-wide watchdog, uwcosim.runguard)
+        #: (read by the run-wide watchdog, uwcosim.core.runguard)
         self.busy: tuple[str, str, float, float] | None = None
         self.adapters: dict[str, FMUAdapter] = {}
         #: the unzipped FMU archives, deleted by close() (or at process exit)
@@ -260,7 +260,7 @@ class Master(SystemChecks):
                           for i in range(len(s.noise_inputs))]
                   for sname, s in system.sensors.items()}
         measured = list(system.sensors) if system.measured is None else list(system.measured)
-        key = "model.sensors" if self.spec is not None else "measured"
+        key = "measured"
         for sname in measured:
             s = system.sensors.get(sname)
             if s is None:
@@ -284,9 +284,10 @@ class Master(SystemChecks):
         self.text.clear()
         self.native.clear()
         self.k = 0
-        self.hooks = []
+        self.observers = []
         self.master_time_s = 0.0
         self.terminated = None
+        self._stopped_inside = False
         for node in self.nodes:
             node.time_s = 0.0
         self._initialized = False
@@ -353,6 +354,7 @@ class Master(SystemChecks):
             if node.adapter.terminated is not None:
                 self._stop(node.adapter)
                 break
+        self.notify()
 
     def _stop(self, ad) -> None:
         """Record ``ad``'s request to stop; an error with ``stop_on_terminate = "error"``."""
@@ -369,10 +371,10 @@ class Master(SystemChecks):
             self.bus[slot] = ctl.value_at(x, y)
 
     def step(self) -> None:
-        """Advance one base step: ``t_k -> t_{k+1}``, then call the hooks.
+        """Advance one base step: ``t_k -> t_{k+1}``, then :meth:`notify` the observers.
 
         When an FMU asks to stop inside the step, :attr:`terminated` is set: if it reached the
-        end of the step the others complete it and the hooks are called; otherwise the run
+        end of the step the others complete it and the observers are notified; otherwise the run
         stops at ``t_k`` (the bus then holds that FMU's outputs at its termination time)."""
         if not self._initialized:
             raise ScenarioError("Master.step() called before initialize()")
@@ -413,12 +415,38 @@ class Master(SystemChecks):
             if stop is not None and self.terminated is None:
                 self._stop(ad)
                 if stop[0] < t_next - 1e-9 * self.h:  # stopped inside the step: not on the grid
+                    self._stopped_inside = True
                     self.master_time_s += time.perf_counter() - c0 - fmu_time
                     return
         self.k = k + 1
         self.master_time_s += time.perf_counter() - c0 - fmu_time
-        for hook in self.hooks:
-            hook(self)
+        self.notify()
+
+    def view(self) -> StepView:
+        """The read-only view of the current step that observers get."""
+        if self._view is None:
+            self._view = StepView(self)
+        return self._view
+
+    def step_at(self, t: float) -> int:
+        """The first step index ``k`` with ``t0 + k*h >= t`` (to the grid's round-off), for
+        times a user gives (snapshot times); 0 for a time before the start."""
+        return max(0, math.ceil((t - self.t0) / self.h - 1e-9))
+
+    def stopped_between_steps(self) -> bool:
+        """True when an FMU's request to stop came inside the last step (its termination time
+        is not on the grid; the bus holds its outputs at that time)."""
+        return self._stopped_inside
+
+    def notify(self) -> None:
+        """Call ``on_step(k, view)`` of every observer, in the order of :attr:`observers`: the
+        one place the master hands its state out (at the start time, by :meth:`initialize`,
+        and after every step, by :meth:`step`)."""
+        if not self.observers:
+            return
+        view = self.view()
+        for obs in self.observers:
+            obs.on_step(self.k, view)
 
     def run_until(self, t: float) -> None:
         """Step until ``t`` (rounded to the base grid), the end of the run or an FMU's request

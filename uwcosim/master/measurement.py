@@ -24,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uwcosim.master.sources import ChunkedTable, gaussian_drawer, loss_drawer, stream
+from uwcosim.core.rng import stream
+from uwcosim.master.sources import ChunkedTable, gaussian_drawer, loss_drawer
 
 
 @dataclass(frozen=True)

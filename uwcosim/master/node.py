@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from uwcosim.errors import FMUError
-from uwcosim.master import vartypes
-from uwcosim.master.adapter import Binding, FMUAdapter
+from uwcosim.core.errors import FMUError
+from uwcosim.fmi import vartypes
+from uwcosim.fmi.adapter import Binding, FMUAdapter
 
 #: native values kept exactly (not only as float64 on the bus) for logging
 EXACT_DTYPES = ("int64", "uint64", "object")

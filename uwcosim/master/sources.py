@@ -13,30 +13,25 @@ stream advanced by ``n``), so a run's samples do not depend on the chunk size.
 
 from __future__ import annotations
 
-import zlib
 from collections.abc import Callable, Collection
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from uwcosim.scenario.schema import BernoulliLoss, ControlSpec, GilbertElliottLoss
+from uwcosim.core.rng import stream
+from uwcosim.fmi import vartypes
+from uwcosim.fmi.varmap import ROLES
+from uwcosim.master.system import BernoulliLoss, Control, GilbertElliottLoss, System
 
 if TYPE_CHECKING:
     from fmpy.model_description import ModelVariable
-
-    from uwcosim.master.system import System
-
-
-def stream(seed: int, purpose: str) -> np.random.Generator:
-    """An independent generator for ``purpose`` (e.g. ``'noise:process'``, ``'loss:dvl'``)."""
-    return np.random.default_rng([int(seed) & 0xFFFFFFFF, zlib.crc32(purpose.encode())])
 
 
 class TableControl:
     """A piecewise-linear (or held) table ``[[t, value], ...]``, constant beyond its ends."""
 
-    def __init__(self, spec: ControlSpec) -> None:
+    def __init__(self, spec: Control) -> None:
         table = np.asarray(spec.table, dtype=float)
         self.t, self.v = table[:, 0], table[:, 1]
         self.hold = spec.interpolation == "hold"
@@ -59,7 +54,7 @@ class WaypointHeading:
     ``acceptance_radius``. After the last one the heading is held.
     """
 
-    def __init__(self, spec: ControlSpec) -> None:
+    def __init__(self, spec: Control) -> None:
         self.points = np.asarray(spec.waypoints, dtype=float)
         self.position = spec.position
         self.radius = spec.acceptance_radius
@@ -188,11 +183,9 @@ def loss_mask(
     return loss_drawer(rng, n, spec)(0, n)
 
 
-def control_problem(c: ControlSpec, var: ModelVariable) -> str | None:
+def control_problem(c: Control, var: ModelVariable) -> str | None:
     """Why control ``c`` cannot drive the FMU input ``var`` (None: it can). A control drives a
     Real input, or an Integer/Boolean one with a held table of whole (Boolean: 0/1) values."""
-    from uwcosim.master import vartypes
-
     kind = vartypes.kind(var)
     if kind == "float":
         return None
@@ -245,3 +238,36 @@ def sample_sources(system: System, controls: dict, slots: dict[str, int], seed: 
     dynamic = [(slots[f"controls.{c}"], ctl) for c, ctl in controls.items()
                if not isinstance(ctl, TableControl)]
     return ChunkedTable(n, makers, len(flat)), flat, dynamic
+
+
+def _absent_noise_inputs(system: System, adapters: dict, signals: list[str]) -> list[str]:
+    """The process-noise roles (``w_*`` inputs of the vehicle roles) among ``signals`` that
+    their FMU, a vehicle with no input besides its roles, does not have. A typo, or a
+    vehicle with inputs it could take the noise on (unmapped), stays an error."""
+    out = []
+    for sig in signals:
+        fmu, _, var = sig.partition(".")
+        f = system.fmus.get(fmu)
+        role = (f.role or (fmu if fmu in ROLES else None)) if f is not None else None
+        roles = ROLES.get(role, {}) if role else {}
+        spec = roles.get(var)
+        if spec is None or not var.startswith("w_") or spec[0] != "input" or spec[2] \
+                or fmu not in adapters:  # an FMU that could not be opened: reported already
+            continue
+        variables = adapters[fmu].variables
+        other_inputs = [n for n, v in variables.items()
+                        if v.causality == "input" and n not in roles]
+        if var not in variables and not other_inputs:
+            out.append(sig)
+    return out
+
+
+def noise_free_sources(system: System, adapters: dict) -> dict[str, str]:
+    """``{noise source: FMU}`` for the noise sources none of whose targets their FMU has (a
+    third-party vehicle without process-noise inputs): the truth runs without them."""
+    out = {}
+    for nname, nz in system.noise.items():
+        absent = _absent_noise_inputs(system, adapters, list(nz.targets))
+        if absent and len(absent) == len(nz.targets):
+            out[nname] = absent[0].partition(".")[0]
+    return out

@@ -2,8 +2,11 @@
 
 :class:`System` lists the FMUs (:class:`FMU`: archive, interface, solver, period, parameters,
 start values, variable map), the connections between their variables, the sources the master
-drives inputs with (table or waypoint controls, white noise), the sensors and the time grid. The
-scenario loader produces one (:func:`from_scenario`); a Python user builds one in code::
+drives inputs with (:class:`Control`: table or waypoint controls; :class:`Noise`: white noise),
+the sensors (:class:`Sensor`, with a :class:`BernoulliLoss` or :class:`GilbertElliottLoss`
+model) and the time grid. The scenario layer converts a scenario into one
+(:func:`uwcosim.scenario.system.to_system`) and its schema reuses these types; a Python user
+builds one in code::
 
     from uwcosim.master import FMU, Control, Master, System
 
@@ -18,48 +21,170 @@ scenario loader produces one (:func:`from_scenario`); a Python user builds one i
     m.run_until(3.0)
     m.close()
 
-Controls, noise and sensors are the scenario's own records (:class:`Control`, :class:`Noise`,
-:class:`Sensor`: pydantic models, checked when built). Nothing here touches an FMU: names are
-checked against the FMUs' model descriptions when the :class:`~uwcosim.master.master.Master`
-is built, with one-line errors that name ``where`` (the scenario file, or ``"system"``).
+The FMU, source and sensor types are validated dataclasses (pydantic): types are strict (a
+string is never taken for a number), unknown keywords, NaN and infinity are refused, and the
+checks that need no FMU (one kind of control, one PSD per target, one sigma per noise input)
+run when one is built. Nothing here touches an FMU: names are checked against the FMUs' model
+descriptions when the :class:`~uwcosim.master.master.Master` is built, with one-line errors
+that name ``where`` (the scenario file, or ``"system"``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Annotated, Literal
 
-from uwcosim.scenario.schema import ControlSpec as Control
-from uwcosim.scenario.schema import NoiseSpec as Noise
-from uwcosim.scenario.schema import SensorSpec as Sensor
+from pydantic import (
+    ConfigDict,
+    Field,
+    StrictBool,
+    StrictFloat,
+    StrictInt,
+    StrictStr,
+    model_validator,
+)
+from pydantic.dataclasses import dataclass as record
 
-if TYPE_CHECKING:
-    from uwcosim.scenario.load import LoadedScenario
+__all__ = ["FMU", "BernoulliLoss", "Connection", "ConnectionTransform", "Control",
+           "GilbertElliottLoss", "Loss", "Noise", "Sensor", "System", "Termination"]
 
-__all__ = ["FMU", "Control", "Noise", "Sensor", "System", "Termination", "from_scenario"]
+#: the validation of every record: unknown keywords, NaN and infinity refused
+RECORD_CONFIG = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+# Strict types: a string is never taken for a number, a float never for an integer; an
+# integer is a valid float.
+Float, Int, Bool, Str = StrictFloat, StrictInt, StrictBool, StrictStr
+Scalar = StrictFloat | StrictInt | StrictBool | StrictStr
+#: a start value or parameter: any FMI scalar, or an array (FMI 3 arrays)
+Value = Scalar | list[StrictFloat | StrictInt | StrictBool]
+PositiveFloat = Annotated[StrictFloat, Field(gt=0)]
+NonNegativeFloat = Annotated[StrictFloat, Field(ge=0)]
+PositiveInt = Annotated[StrictInt, Field(ge=1)]
+Probability = Annotated[StrictFloat, Field(ge=0.0, le=1.0)]
 
 
-@dataclass
+@record(config=RECORD_CONFIG)
 class FMU:
     """One FMU of a system (the keys of a scenario's ``[fmus.NAME]``)."""
 
-    path: str | Path
+    path: Str | Path
     interface: Literal["cs", "me"] = "cs"
     #: ME only: ``rk4`` (fixed step, ``substeps`` per communication step) or ``adaptive``
-    solver: str = "rk4"
-    substeps: int = 1
+    solver: Literal["rk4", "adaptive"] = "rk4"
+    substeps: PositiveInt = 1
     #: communication period as an integer multiple of the system's step
-    period: int = 1
-    rtol: float = 1e-8
-    #: values of any FMI type by variable name (TOML-like: float, int, bool, str, list of float)
-    parameters: dict[str, Any] = field(default_factory=dict)
-    start: dict[str, Any] = field(default_factory=dict)
-    #: roles -> FMU variables (a TOML file name or the entries; :mod:`uwcosim.master.varmap`)
-    map: str | dict | None = None
-    role: str | None = None
-    #: per-call time limit (s): the FMU then runs in a worker process
-    timeout_s: float | None = None
+    period: PositiveInt = 1
+    rtol: PositiveFloat = 1e-8
+    #: values of any FMI type by variable name (TOML-like: float, int, bool, str, list)
+    parameters: dict[Str, Value] = field(default_factory=dict)
+    start: dict[Str, Value] = field(default_factory=dict)
+    #: roles -> FMU variables with unit conversion (a TOML file name or an inline table;
+    #: see :mod:`uwcosim.fmi.varmap`); start values may then use the role names
+    map: Str | dict[Str, Str | dict[Str, Scalar]] | None = None
+    #: role table the map is checked against (default: the FMU's name if it is a role)
+    role: Literal["vehicle"] | None = None
+    #: per-call time limit (s): the FMU then runs in a worker process, killed on timeout
+    timeout_s: PositiveFloat | None = None
+
+
+@record(config=RECORD_CONFIG, frozen=True)
+class ConnectionTransform:
+    """A linear transformation on a connection: ``input = factor * output + offset``."""
+
+    factor: Float = 1.0
+    offset: Float = 0.0
+
+
+#: ``(output, input)`` or ``(output, input, ConnectionTransform)``
+Connection = tuple[Str, Str] | tuple[Str, Str, ConnectionTransform]
+
+
+@record(config=RECORD_CONFIG)
+class Control:
+    """A control input driven by the master: a time table, or the heading to waypoints."""
+
+    target: Str
+    table: list[tuple[Float, Float]] | None = None
+    waypoints: list[tuple[Float, Float]] | None = None
+    interpolation: Literal["linear", "hold"] = "linear"
+    position: tuple[Str, Str] = ("vehicle.x", "vehicle.y")
+    acceptance_radius: PositiveFloat = 50.0
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> Control:
+        if (self.table is None) == (self.waypoints is None):
+            raise ValueError("give exactly one of 'table' or 'waypoints'")
+        if self.table is not None:
+            times = [t for t, _ in self.table]
+            if not times or any(b <= a for a, b in zip(times, times[1:])):
+                raise ValueError("'table' needs at least one [time, value] row, times increasing")
+        if self.waypoints is not None and len(self.waypoints) < 1:
+            raise ValueError("'waypoints' needs at least one [x, y] point")
+        return self
+
+
+@record(config=RECORD_CONFIG, frozen=True)
+class BernoulliLoss:
+    """Each sample is lost independently with probability ``p``."""
+
+    model: Literal["bernoulli"]
+    p: Probability = 0.0
+
+
+@record(config=RECORD_CONFIG, frozen=True)
+class GilbertElliottLoss:
+    """Bursty losses: a two-state Markov chain (good, bad) with a loss probability in each."""
+
+    model: Literal["gilbert_elliott"]
+    p_good_to_bad: Probability
+    p_bad_to_good: Probability
+    loss_good: Probability = 0.0
+    loss_bad: Probability = 1.0
+
+
+#: a sensor's loss model, chosen by ``model``
+Loss = Annotated[BernoulliLoss | GilbertElliottLoss, Field(discriminator="model")]
+
+
+@record(config=RECORD_CONFIG)
+class Noise:
+    """White noise of power spectral densities ``psd`` on the inputs ``targets``, held over a
+    step (a sample of PSD ``q`` has variance ``q / step``)."""
+
+    targets: list[Str]
+    psd: list[NonNegativeFloat]
+
+    @model_validator(mode="after")
+    def _same_length(self) -> Noise:
+        if len(self.targets) != len(self.psd):
+            raise ValueError(f"'psd' has {len(self.psd)} values for {len(self.targets)} targets")
+        return self
+
+
+@record(config=RECORD_CONFIG)
+class Sensor:
+    """Outputs of FMUs sampled every ``period`` steps, with noise (on the FMU's noise inputs, or
+    added to the outputs) and an optional loss model."""
+
+    outputs: list[Str]
+    noise_inputs: list[Str] = field(default_factory=list)
+    sigma: list[NonNegativeFloat] = field(default_factory=list)
+    period: PositiveInt = 1
+    loss: Loss | None = None
+
+    @model_validator(mode="after")
+    def _same_length(self) -> Sensor:
+        if self.noise_inputs and len(self.noise_inputs) != len(self.sigma):
+            raise ValueError(
+                f"'sigma' has {len(self.sigma)} values for {len(self.noise_inputs)} noise_inputs"
+            )
+        if not self.noise_inputs and self.sigma and len(self.sigma) != len(self.outputs):
+            raise ValueError(
+                f"'sigma' without noise_inputs is additive noise on the outputs: it needs "
+                f"{len(self.outputs)} values, got {len(self.sigma)}"
+            )
+        return self
 
 
 @dataclass
@@ -72,7 +197,7 @@ class System:
     start_time: float = 0.0
     seed: int = 0
     #: ``[("fmu.output", "fmu.input"), ...]``
-    connections: list[tuple[str, str]] = field(default_factory=list)
+    connections: list[Connection] = field(default_factory=list)
     controls: dict[str, Control] = field(default_factory=dict)
     noise: dict[str, Noise] = field(default_factory=dict)
     sensors: dict[str, Sensor] = field(default_factory=dict)
@@ -105,23 +230,3 @@ class Termination:
     def message(self) -> str:
         why = f": {self.reason}" if self.reason else ""
         return f"FMU '{self.fmu}' requested termination at t={self.time:g}{why}"
-
-
-def from_scenario(loaded: LoadedScenario) -> System:
-    """The system of a loaded scenario (:class:`~uwcosim.scenario.load.LoadedScenario`)."""
-    spec = loaded.spec
-    fmus = {
-        name: FMU(path=f.path, interface=f.interface, solver=f.solver, substeps=f.substeps,
-                  period=f.period, rtol=f.rtol, parameters=dict(f.parameters),
-                  start=dict(f.start), map=f.map, role=f.role, timeout_s=f.timeout_s)
-        for name, f in spec.fmus.items()
-    }
-    return System(
-        fmus=fmus, step=spec.run.step, duration=spec.run.duration,
-        start_time=spec.run.start_time, seed=spec.run.seed,
-        connections=[tuple(c) for c in spec.connections], controls=dict(spec.controls),
-        noise=dict(spec.noise), sensors=dict(spec.sensors),
-        measured=list(spec.model.sensors) if spec.model is not None else [],
-        stop_on_terminate=spec.run.stop_on_terminate, name=spec.name,
-        base_dir=loaded.base_dir, where=str(loaded.path),
-    )

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from uwcosim.integrators import rk4
+from uwcosim.core.integrators import rk4
 
 STATE_NAMES = ("x", "y", "vx", "vy")
 CONTROL_NAMES = ("psi", "a")

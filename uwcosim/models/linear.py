@@ -21,7 +21,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from uwcosim.errors import ScenarioError
+from uwcosim.core.errors import ScenarioError
 
 CV_STATE_NAMES = ("px", "vx", "py", "vy")
 _ALIASES = {"x": "px", "y": "py"}

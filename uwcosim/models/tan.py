@@ -44,7 +44,7 @@ import weakref
 import casadi as ca
 import numpy as np
 
-from uwcosim import bspline
+from uwcosim.core import bspline
 from uwcosim.models.auv_equations import STATE_NAMES, vehicle_ode
 from uwcosim.models.casadi_model import CasadiModel
 from uwcosim.models.terrain import PAD, Bathymetry
@@ -53,7 +53,7 @@ DVL_NAMES = ("dvl.vx_m", "dvl.vy_m")
 DEPTH_NAME = "sounder.depth_m"
 
 TABLE_MAX_BYTES = 512 * 2**20
-# cubic B-spline basis in the monomial basis: w_a(f) = sum_i _M[a, i] f^i (uwcosim.bspline)
+# cubic B-spline basis in the monomial basis: w_a(f) = sum_i _M[a, i] f^i (uwcosim.core.bspline)
 _M = bspline.MONOMIAL.T
 _TABLES: dict[int, np.ndarray] = {}
 _KERNELS: list = []  # [module of the compiled lookups] once Numba is loaded, [None] if disabled
@@ -66,7 +66,7 @@ def _kernels():
         return _KERNELS[0]
     if "numba" not in sys.modules:
         return None  # asked again at the next call: the grid filters may load it later
-    from uwcosim.filters.grid import jit
+    from uwcosim.core import jit
 
     if jit.ENABLED:
         from uwcosim.models import terrain_kernels

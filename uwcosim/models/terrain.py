@@ -4,7 +4,7 @@ A map is a regular grid of depths (m, positive down) at ``x = x0 + i*dx`` (east)
 ``y = y0 + j*dy`` (north), stored as ``depth[j, i]`` (rows are y). ``h_d`` is the C2 cubic
 B-spline that interpolates the grid (coefficients from :func:`scipy.ndimage.spline_filter` with
 mirror boundaries, padded by three mirrored coefficients on each side), defined once in
-:mod:`uwcosim.bspline` (which lists its other forms and their tests). It is evaluated by
+:mod:`uwcosim.core.bspline` (which lists its other forms and their tests). It is evaluated by
 
 - :meth:`Bathymetry.depth` / :meth:`Bathymetry.gradient` (numpy, vectorized over points),
 - :meth:`Bathymetry.casadi_function` (``casadi.bspline``: exact Jacobians for the EKF),
@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from uwcosim import bspline
-from uwcosim.errors import MapError
+from uwcosim.core import bspline
+from uwcosim.core.errors import MapError
 
 PAD = 3
 MAGIC = b"UWCBATH1"

@@ -8,7 +8,7 @@ per lookup): for the 9 sigma points of a UKF the lookup is most of the cost, for
 the gather and the temporaries.
 
 :class:`FastTerrain` calls it only when Numba is already imported (by the grid filters'
-kernels, :mod:`uwcosim.filters.grid.jit`): importing Numba costs about 0.5 s, more than the
+kernels, :mod:`uwcosim.core.jit`): importing Numba costs about 0.5 s, more than the
 kernel saves over a few thousand steps of a UKF or a PF alone. :func:`point` is
 :meth:`FastTerrain._point` (depth and gradient at one point, the EKF's ``h`` and ``H``).
 """
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 
-from uwcosim.filters.grid.jit import _jit
+from uwcosim.core.jit import _jit
 
 
 @_jit

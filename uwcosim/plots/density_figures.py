@@ -1,77 +1,15 @@
 """Posterior densities of grid and projection filters at a few instants (``density_t*.png``).
 
-During the run, :class:`DensitySnapshots` (a master hook) evaluates the density of every
-estimator that has one (``density_grid``) on one common grid per instant: the union of the
-estimators' own boxes, made square. The snapshots are saved to ``densities.npz`` in the run
-directory, and :func:`draw_densities` draws them from that file alone (the report stage): in
+:func:`draw_densities` draws the snapshots a run saved to ``densities.npz``
+(:class:`uwcosim.run.density.DensitySnapshots`) from that file alone (the report stage): in
 each figure the panels share their extent and their colour scale, with one colorbar.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from uwcosim.estimator_bank import EstimatorBank
-    from uwcosim.master.master import Master
 
 import numpy as np
-
-N_POINTS = 81
-
-
-class DensitySnapshots:
-    """A master hook that keeps ``density_grid()`` of the estimators that have one, at times."""
-
-    def __init__(self, bank: EstimatorBank, times: list[float],
-                 truth_xy: tuple[int, int]) -> None:
-        self.bank = bank
-        self.times = sorted(times)
-        self.truth_xy = truth_xy
-        self.snaps: list[dict] = []
-
-    def __call__(self, master: Master) -> None:
-        if not self.times or master.t + 1e-9 < self.times[0]:
-            return
-        while self.times and master.t + 1e-9 >= self.times[0]:
-            self.times.pop(0)
-        grids = {}
-        for tr in self.bank.tracks:
-            grid = getattr(tr.estimator, "density_grid", None)
-            if grid is None or tr.diverged_at is not None:
-                continue
-            axes, _ = grid(n=N_POINTS)
-            if len(axes) == 2:
-                grids[tr.name] = (grid, axes, tr.estimator.x.copy())
-        if not grids:
-            return
-        lo = [min(a[d][0] for _, a, _ in grids.values()) for d in range(2)]
-        hi = [max(a[d][-1] for _, a, _ in grids.values()) for d in range(2)]
-        half = max(hi[0] - lo[0], hi[1] - lo[1]) / 2  # a square box: equal axes, no gaps
-        mid = [(lo[d] + hi[d]) / 2 for d in range(2)]
-        common = [np.linspace(mid[d] - half, mid[d] + half, N_POINTS) for d in range(2)]
-        snap = {"t": master.t, "truth": master.bus[self.bank.truth_slots][list(self.truth_xy)],
-                "axes": common, "densities": {}}
-        for name, (grid, _, x) in grids.items():
-            _, values = grid(axes=common)
-            snap["densities"][name] = (values, x[list(self.truth_xy)])
-        self.snaps.append(snap)
-
-    def save(self, path: Path, states: list[str]) -> Path | None:
-        """Write the snapshots to ``path`` (``.npz``); nothing when there is none."""
-        if not self.snaps:
-            return None
-        arrays = {"states": np.array([states[i] for i in self.truth_xy])}
-        for i, snap in enumerate(self.snaps):
-            arrays[f"{i}|t"] = np.array(snap["t"])
-            arrays[f"{i}|truth"] = np.asarray(snap["truth"], dtype=float)
-            arrays[f"{i}|x"], arrays[f"{i}|y"] = snap["axes"]
-            for name, (values, mean) in snap["densities"].items():
-                arrays[f"{i}|{name}|values"] = values
-                arrays[f"{i}|{name}|mean"] = mean
-        np.savez_compressed(path, **arrays)
-        return Path(path)
 
 
 def read_densities(path: Path) -> tuple[list[str], list[dict]]:

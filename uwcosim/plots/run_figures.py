@@ -3,7 +3,6 @@
 - ``trajectory.png``: truth and estimates over the bathymetry map;
 - ``position_error.png``: position error of each estimator against time with its 3-sigma bound;
 - ``position_error_norm.png``: the position error norm per step of the run;
-- :func:`results_table`: the result table of ``report.md`` (written by :mod:`uwcosim.report`).
 """
 
 from __future__ import annotations
@@ -28,7 +27,15 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from uwcosim.evaluation.metrics import position_velocity_indices  # noqa: E402
+from uwcosim.models.states import position_velocity_indices  # noqa: E402
+from uwcosim.runlog import columns  # noqa: E402
+
+
+def _position(cols: Columns, estimator: str, states: Names) -> tuple[np.ndarray, np.ndarray]:
+    """The position estimate ``(x, y)`` of ``estimator`` over the run."""
+    ix, iy = position_velocity_indices(states)[0]
+    return (cols[columns.estimate(estimator, states[ix])],
+            cols[columns.estimate(estimator, states[iy])])
 
 
 def _end_window(cols, truth_names, est_names, states):
@@ -40,9 +47,8 @@ def _end_window(cols, truth_names, est_names, states):
     tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
     n = tx.size
     k0 = max(0, n - max(5, n // 20))
-    worst = [np.nanmax(np.hypot(cols[f"est.{e}.{states[ix]}"][k0:] - tx[k0:],
-                                cols[f"est.{e}.{states[iy]}"][k0:] - ty[k0:]), initial=np.nan)
-             for e in est_names]
+    worst = [np.nanmax(np.hypot(ex[k0:] - tx[k0:], ey[k0:] - ty[k0:]), initial=np.nan)
+             for ex, ey in (_position(cols, e, states) for e in est_names)]
     worst = np.array([w for w in worst if np.isfinite(w)])
     if not np.isfinite(tx[-1]) or not np.isfinite(ty[-1]):
         return None
@@ -91,8 +97,7 @@ def trajectory_figure(cols: Columns, truth_names: Names, est_names: Names, state
         fig.colorbar(im, cax=cax, label="depth (m)")
     lines = [ax.plot(tx, ty, "k-", lw=2, label="truth")[0]]
     for name in est_names:
-        lines += ax.plot(cols[f"est.{name}.{states[ix]}"], cols[f"est.{name}.{states[iy]}"],
-                         lw=1, label=name)
+        lines += ax.plot(*_position(cols, name, states), lw=1, label=name)
     ax.plot(tx[0], ty[0], "ko")
     if bathy is not None:
         ax.set_xlim(x0, x1)
@@ -110,8 +115,7 @@ def trajectory_figure(cols: Columns, truth_names: Names, est_names: Names, state
         ins.plot(tx, ty, "k-", lw=2)
         ins.plot(tx[-1], ty[-1], "ko", ms=4)
         for line, name in zip(lines[1:], est_names):
-            ins.plot(cols[f"est.{name}.{states[ix]}"], cols[f"est.{name}.{states[iy]}"],
-                     lw=1, color=line.get_color())
+            ins.plot(*_position(cols, name, states), lw=1, color=line.get_color())
         ins.set_xlim(box[0], box[1])
         ins.set_ylim(box[2], box[3])
         ins.set_aspect("equal")
@@ -141,10 +145,10 @@ def error_figure(cols: Columns, truth_names: Names, est_names: Names, states: Na
     mags = []
     handles = None
     for ax, name in zip(axes[:, 0], est_names):
-        ex = cols[f"est.{name}.{states[ix]}"] - tx
-        ey = cols[f"est.{name}.{states[iy]}"] - ty
-        sx = 3 * np.sqrt(cols[f"est.{name}.var.{states[ix]}"])
-        sy = 3 * np.sqrt(cols[f"est.{name}.var.{states[iy]}"])
+        ex = cols[columns.estimate(name, states[ix])] - tx
+        ey = cols[columns.estimate(name, states[iy])] - ty
+        sx = 3 * np.sqrt(cols[columns.variance(name, states[ix])])
+        sy = 3 * np.sqrt(cols[columns.variance(name, states[iy])])
         bx = ax.fill_between(t, -sx, sx, facecolor="none", edgecolor="C0", hatch="////",
                              lw=0.0, alpha=0.5, label="±3σ x")
         by = ax.fill_between(t, -sy, sy, color="C1", alpha=0.18, lw=0, label="±3σ y")
@@ -179,7 +183,8 @@ def error_norm_figure(cols: Columns, truth_names: Names, est_names: Names, state
     tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
     fig, ax = plt.subplots(figsize=(8, 3.6), dpi=110)
     for name in est_names:
-        e = np.hypot(cols[f"est.{name}.{states[ix]}"] - tx, cols[f"est.{name}.{states[iy]}"] - ty)
+        ex, ey = _position(cols, name, states)
+        e = np.hypot(ex - tx, ey - ty)
         ax.plot(t, e, lw=0.8, label=name)
     ax.set_yscale("log")
     ax.set_xlabel("time (s)")
@@ -190,17 +195,3 @@ def error_norm_figure(cols: Columns, truth_names: Names, est_names: Names, state
     fig.savefig(path)
     plt.close(fig)
     return path
-
-
-def results_table(summary: dict) -> str:
-    head = ("| estimator | pos. RMSE (m) | x RMSE (m) | y RMSE (m) | vel. RMSE (m/s) | ANEES "
-            "| time/step (ms) | diverged |\n|---|---|---|---|---|---|---|---|\n")
-    rows = []
-    for name, m in summary["estimators"].items():
-        rows.append(
-            f"| {name} | {m['rmse_position_m']:.2f} | {m['rmse_x_m']:.2f} | {m['rmse_y_m']:.2f} "
-            f"| {m.get('rmse_velocity_mps', float('nan')):.4f} | {m['anees']:.2f} "
-            f"| {1e3 * m.get('time_per_step_s', float('nan')):.3f} "
-            f"| {'yes' if m['diverged'] else 'no'} |"
-        )
-    return head + "\n".join(rows) + "\n"

@@ -1,15 +1,14 @@
-"""Figures of the logged signals of a run, and the report of a plain co-simulation run.
+"""Figures of the logged signals of a run (a plain co-simulation run's report draws them:
+:mod:`uwcosim.reports.signal_report`).
 
-Reads only the run's log table (``log.parquet``; ``summary.json`` for the report's header when
-there is one), so it serves any run directory. One panel per signal group: the part of the
-column name before the first ``.`` (the FMU, or ``controls``), at most :data:`PER_PANEL` lines a
-panel; time on x. Integer and Boolean signals are drawn as steps (held between samples); String
-columns are listed, not drawn.
+Reads only the run's log table (``log.parquet``), so it serves any run directory. One panel per
+signal group: the part of the column name before the first ``.`` (the FMU, or ``controls``), at
+most :data:`PER_PANEL` lines a panel; time on x. Integer and Boolean signals are drawn as steps
+(held between samples); String columns are listed, not drawn.
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import matplotlib
@@ -87,46 +86,3 @@ def signal_figures(log_path: str | Path, out_dir: str | Path,
         plt.close(fig)
         paths.append(path)
     return paths, text
-
-
-def write_signal_report(run_dir: str | Path, out: str | Path | None = None,
-                        summary: dict | None = None) -> Path:
-    """``report.md`` of a run without estimators: status, timing and the signal figures, into
-    ``out`` (default: the run directory). ``summary``: default the run's ``summary.json``."""
-    run_dir = Path(run_dir)
-    out = Path(out) if out is not None else run_dir
-    out.mkdir(parents=True, exist_ok=True)
-    log_path = run_dir / "log.parquet"
-    figures, text = signal_figures(log_path, out)
-    _, meta = read_log(log_path)
-    summary_path = run_dir / "summary.json"
-    s = summary if summary is not None else \
-        json.loads(summary_path.read_text()) if summary_path.is_file() else {}
-    seed = s.get("seed", meta.get("seed", "N"))
-    lines = [
-        f"# Run report: {s.get('scenario', run_dir.name)}\n",
-        f"Seed {seed}, {s.get('steps', '?')} steps of {s.get('step_s', float('nan')):g} s, "
-        f"status **{s.get('status', '?')}**. Reproduce with "
-        f"`uwcosim run {meta.get('scenario_path', 'SCENARIO')} --seed {seed}"
-        f"{''.join(' --set ' + o for o in meta.get('overrides', []))}`.\n",
-    ]
-    stop = s.get("termination")
-    if stop:
-        lines.append(f"FMU `{stop['fmu']}` requested termination at t = {stop['time_s']:g} s"
-                     f"{': ' + stop['reason'] if stop.get('reason') else ''}.\n")
-    if s.get("error"):
-        lines.append(f"Error: {s['error']}\n")
-    timing = s.get("timing", {})
-    per_fmu = [(k[4:-2], v) for k, v in timing.items() if k.startswith("fmu.")]
-    if per_fmu:
-        lines.append("| FMU | wall time (s) |\n|---|---|\n"
-                     + "".join(f"| {n} | {v:.4f} |\n" for n, v in per_fmu))
-    if "master_s" in timing:
-        lines.append(f"Master (outside the FMUs): {timing['master_s']:.4f} s.\n")
-    lines += [f"![{p.stem}]({p.name})\n" for p in figures]
-    if text:
-        lines.append("String signals (in the log, not drawn): "
-                     + ", ".join(f"`{n}`" for n in text) + "\n")
-    path = out / "report.md"
-    path.write_text("\n".join(lines))
-    return path

@@ -23,6 +23,8 @@ from uwcosim.regress.compare import (
     compare_logs,
     read_columns,
 )
+from uwcosim.run.simulate import run_scenario
+from uwcosim.scenario import load_scenario
 
 #: the short version of a shipped scenario
 DEFAULT_OVERRIDES: tuple[str, ...] = ("run.duration=300",)
@@ -43,9 +45,6 @@ def baseline_path(baseline_dir: str | Path, scenario: str | Path) -> Path:
 def run_log(scenario: str | Path, overrides=(), out_dir: str | Path | None = None,
             seed: int | None = None) -> Path:
     """Run ``scenario`` with ``overrides`` (no figures); the path of its log."""
-    from uwcosim.scenario import load_scenario
-    from uwcosim.simulation import run_scenario
-
     loaded = load_scenario(scenario, list(overrides))
     out = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="uwc_regr_"))
     return run_scenario(loaded, out, seed=seed, figures=False).log_path

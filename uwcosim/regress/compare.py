@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uwcosim.errors import RegressionInputError, UwcosimError
+from uwcosim.core.errors import RegressionInputError, UwcosimError
 
 DEFAULT_RTOL = 1e-6
 DEFAULT_ATOL = 1e-9

@@ -4,7 +4,7 @@ Columns are float64 unless given another numpy dtype (Integer, Boolean, Float32 
 outputs of FMUs get the matching Arrow type). Rows are buffered in numpy arrays and written as
 one row group per chunk, so an interrupted or failed run leaves a readable file with every
 chunk written so far (:meth:`RunLogger.close` is called from a ``finally``, or by the signal
-watcher of :mod:`uwcosim.runguard`; the writer is lock-protected for that).
+watcher of :mod:`uwcosim.core.runguard`; the writer is lock-protected for that).
 
 A process killed outright (``kill -9``, power loss of the process) never writes the Parquet
 footer, so ``log.parquet`` is then unreadable. Each row group is therefore also appended to a
@@ -29,7 +29,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from uwcosim.errors import UwcosimError
+from uwcosim.core.errors import UwcosimError
 
 #: dtypes whose values are passed exactly (not through the float64 row): String, Int64, UInt64
 EXACT = (np.dtype(object), np.dtype(np.int64), np.dtype(np.uint64))

@@ -16,26 +16,39 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
-    StrictBool,
-    StrictFloat,
-    StrictInt,
-    StrictStr,
+    TypeAdapter,
     ValidationError,
     field_validator,
     model_validator,
 )
 
-# Strict types: a TOML string is never taken for a number ("50" is refused for a duration),
-# a float never for an integer; an integer is a valid float. NaN and infinity are refused
-# everywhere (``allow_inf_nan=False``).
-Float, Int, Bool, Str = StrictFloat, StrictInt, StrictBool, StrictStr
-Scalar = StrictFloat | StrictInt | StrictBool | StrictStr
-#: a start value or parameter: any FMI scalar as TOML gives it, or an array (FMI 3 arrays)
-Value = Scalar | list[StrictFloat | StrictInt | StrictBool]
-PositiveFloat = Annotated[StrictFloat, Field(gt=0)]
-NonNegativeFloat = Annotated[StrictFloat, Field(ge=0)]
-PositiveInt = Annotated[StrictInt, Field(ge=1)]
-Probability = Annotated[StrictFloat, Field(ge=0.0, le=1.0)]
+from uwcosim.master.system import (
+    FMU,
+    BernoulliLoss,
+    Bool,
+    Connection,
+    ConnectionTransform,
+    Control,
+    Float,
+    GilbertElliottLoss,
+    Int,
+    Loss,
+    Noise,
+    NonNegativeFloat,
+    PositiveFloat,
+    PositiveInt,
+    Sensor,
+    Str,
+)
+
+# The FMU, connection-transform, control, noise, sensor and loss records are the system
+# layer's own types (:mod:`uwcosim.master.system`), validated the same way as the records
+# below: strict types (a TOML string is never taken for a number, "50" is refused for a
+# duration; a float never for an integer; an integer is a valid float), NaN and infinity refused
+# everywhere (``allow_inf_nan=False``), unknown keys refused.
+__all__ = ["FMU", "BernoulliLoss", "ConnectionTransform", "Control", "GilbertElliottLoss",
+           "Loss", "Noise", "Scenario", "Sensor"]
+
 #: more steps than this cannot be represented as ``t0 + k*h`` to the step (2**53 / 1000)
 MAX_STEPS = 9_000_000_000_000
 #: largest synthetic map grid (cells)
@@ -70,108 +83,10 @@ class RunSpec(Strict):
         return self
 
 
-class FMUSpec(Strict):
-    path: Str
-    interface: Literal["cs", "me"] = "cs"
-    solver: Literal["rk4", "adaptive"] = "rk4"
-    substeps: PositiveInt = 1
-    period: PositiveInt = 1
-    rtol: PositiveFloat = 1e-8
-    parameters: dict[Str, Value] = {}
-    start: dict[Str, Value] = {}
-    #: roles -> FMU variables with unit conversion (a TOML file name or an inline table;
-    #: see :mod:`uwcosim.master.varmap`); start values may then use the role names
-    map: Str | dict[Str, Str | dict[Str, Scalar]] | None = None
-    #: role table the map is checked against (default: the FMU's name if it is a role)
-    role: Literal["vehicle"] | None = None
-    #: per-call time limit (s): the FMU then runs in a worker process, killed on timeout
-    timeout_s: PositiveFloat | None = None
-
-
-class ConnectionTransform(Strict):
-    """A linear transformation on a connection: ``input = factor * output + offset``."""
-
-    factor: Float = 1.0
-    offset: Float = 0.0
-
-
-#: ``[output, input]`` or ``[output, input, {factor = ..., offset = ...}]``
-Connection = tuple[Str, Str] | tuple[Str, Str, ConnectionTransform]
-
-
 class SystemSpec(Strict):
-    """The truth side from another tool: an SSP file (see :mod:`uwcosim.ssp`)."""
+    """The truth side from another tool: an SSP file (see :mod:`uwcosim.scenario.ssp`)."""
 
     ssp: Str
-
-
-class ControlSpec(Strict):
-    target: Str
-    table: list[tuple[Float, Float]] | None = None
-    waypoints: list[tuple[Float, Float]] | None = None
-    interpolation: Literal["linear", "hold"] = "linear"
-    position: tuple[Str, Str] = ("vehicle.x", "vehicle.y")
-    acceptance_radius: PositiveFloat = 50.0
-
-    @model_validator(mode="after")
-    def _one_kind(self) -> ControlSpec:
-        if (self.table is None) == (self.waypoints is None):
-            raise ValueError("give exactly one of 'table' or 'waypoints'")
-        if self.table is not None:
-            times = [t for t, _ in self.table]
-            if not times or any(b <= a for a, b in zip(times, times[1:])):
-                raise ValueError("'table' needs at least one [time, value] row, times increasing")
-        if self.waypoints is not None and len(self.waypoints) < 1:
-            raise ValueError("'waypoints' needs at least one [x, y] point")
-        return self
-
-
-class BernoulliLoss(Strict):
-    model: Literal["bernoulli"]
-    p: Probability = 0.0
-
-
-class GilbertElliottLoss(Strict):
-    model: Literal["gilbert_elliott"]
-    p_good_to_bad: Probability
-    p_bad_to_good: Probability
-    loss_good: Probability = 0.0
-    loss_bad: Probability = 1.0
-
-
-LossSpec = Annotated[BernoulliLoss | GilbertElliottLoss, Field(discriminator="model")]
-
-
-class NoiseSpec(Strict):
-    targets: list[Str]
-    psd: list[NonNegativeFloat]
-
-    @model_validator(mode="after")
-    def _same_length(self) -> NoiseSpec:
-        if len(self.targets) != len(self.psd):
-            raise ValueError(f"'psd' has {len(self.psd)} values for {len(self.targets)} targets")
-        return self
-
-
-class SensorSpec(Strict):
-    outputs: list[Str]
-    noise_inputs: list[Str] = []
-    sigma: list[NonNegativeFloat] = []
-    period: PositiveInt = 1
-    loss: LossSpec | None = None
-
-    @model_validator(mode="after")
-    def _same_length(self) -> SensorSpec:
-        if self.noise_inputs and len(self.noise_inputs) != len(self.sigma):
-            raise ValueError(
-                f"'sigma' has {len(self.sigma)} values for {len(self.noise_inputs)} noise_inputs"
-            )
-        if not self.noise_inputs and self.sigma and len(self.sigma) != len(self.outputs):
-            raise ValueError(
-                f"'sigma' without noise_inputs is additive noise on the outputs: it needs "
-                f"{len(self.outputs)} values, got {len(self.sigma)}"
-            )
-        return self
 
 
 class MapSpec(Strict):
@@ -241,7 +156,7 @@ class EstimationSpec(Strict):
     initial_std: list[Annotated[Float, Field(gt=0)]]
     initial_error: Literal["random", "zero"] = "random"
     #: [xmin, xmax, ymin, ymax] (m): an estimate outside is diverged (default: the map's
-    #: extent widened by its larger side; uwcosim.divergence)
+    #: extent widened by its larger side; uwcosim.run.divergence)
     position_bound: tuple[Float, Float, Float, Float] | None = None
 
     @model_validator(mode="after")
@@ -268,11 +183,11 @@ class Scenario(Strict):
     description: Str = ""
     run: RunSpec
     system: SystemSpec | None = None
-    fmus: dict[Str, FMUSpec]
+    fmus: dict[Str, FMU]
     connections: list[Connection] = []
-    controls: dict[Str, ControlSpec] = {}
-    noise: dict[Str, NoiseSpec] = {}
-    sensors: dict[Str, SensorSpec] = {}
+    controls: dict[Str, Control] = {}
+    noise: dict[Str, Noise] = {}
+    sensors: dict[Str, Sensor] = {}
     map: MapSpec | None = None
     model: ModelSpec | None = None
     estimation: EstimationSpec | None = None
@@ -293,9 +208,11 @@ class Scenario(Strict):
                                  f"[output, input, {{factor = ..., offset = ...}}], got {c!r}")
             if len(c) == 3 and isinstance(c[2], dict):
                 try:
-                    ConnectionTransform.model_validate(c[2])
+                    TypeAdapter(ConnectionTransform).validate_python(c[2])
                 except ValidationError as exc:
                     err = exc.errors()[0]
+                    msg = "Extra inputs are not permitted" \
+                        if err["type"] == "unexpected_keyword_argument" else err["msg"]
                     raise ValueError(f"entry {i}: {'.'.join(map(str, err['loc']))}: "
-                                     f"{err['msg']} (expected factor, offset: numbers)") from None
+                                     f"{msg} (expected factor, offset: numbers)") from None
         return value

@@ -1,7 +1,8 @@
-"""One validation pass over a scenario that reports every problem, not only the first.
+"""One validation pass over a scenario's data that reports every problem, not only the first.
 
-Three levels, each a list of one-line :class:`Problem` s naming the file, the key and what was
-expected:
+This is the first of ``uwcosim check``'s three levels, each a list of one-line
+:class:`Problem` s naming the file, the key and what was expected (the other two need the FMUs
+and the filters' model: :mod:`uwcosim.run.preflight`):
 
 1. :func:`validate_data` (at load time, :func:`uwcosim.scenario.load_scenario`): every schema
    error of the data (all pydantic errors, one line per key), every ``[estimators.NAME]``
@@ -10,29 +11,25 @@ expected:
    (``model.sensors``/``controls``, ``estimators.NAME.sensors``, the shape of the filters'
    model, a map for a depth sensor). ``load_scenario`` raises the first with
    ``(and N more; see uwcosim check)``.
-2. :func:`check_fmus`: the scenario against the FMUs' model descriptions (variables,
-   causalities, types of connections, start values and parameters, algebraic loops; the
-   master's own checks, run in its collecting mode, :meth:`uwcosim.master.master.Master`
-   ``check_only``), and ``model.truth`` outputs.
-3. :func:`check_filters`: the map is read, the filters' model built and every estimator
-   constructed at the initial state (what the constructors check: measurement names, grid
-   memory, ...).
+2. the FMUs' model descriptions; 3. the map, the filters' model and every filter built.
 
-:func:`check_scenario` runs all three for ``uwcosim check`` (exit 0 ok, 2 scenario problems,
-3 FMU problems only). After validation the estimator bank and the model factory trust their
-input.
+After validation the estimator bank and the model factory trust their input.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import re
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from uwcosim.errors import ScenarioError, UwcosimError
+from uwcosim.core.errors import FMUError, ScenarioError, UwcosimError
+from uwcosim.filters import ESTIMATORS
+from uwcosim.filters.policies import POLICIES
+from uwcosim.filters.settings import settings_model
+from uwcosim.models.states import MODEL_STATES
 from uwcosim.scenario import schema
 from uwcosim.scenario.schema import EstimatorSpec, Scenario
 
@@ -51,8 +48,6 @@ class Problem:
 
 def first_error(problems: list[Problem]) -> UwcosimError:
     """The first problem as an exception, saying how many more there are."""
-    from uwcosim.errors import FMUError
-
     p = problems[0]
     more = f" (and {len(problems) - 1} more; see uwcosim check)" if len(problems) > 1 else ""
     exc = FMUError if p.exit_code == 3 else ScenarioError
@@ -62,8 +57,19 @@ def first_error(problems: list[Problem]) -> UwcosimError:
 
 
 # -- level 1: the schema ------------------------------------------------------------------------
-_MODEL_NAMES = {n for n, v in vars(schema).items()
-                if isinstance(v, type) and issubclass(v, BaseModel)}
+def _is_record(v: Any) -> bool:
+    """A pydantic model or a pydantic dataclass (the system layer's records)."""
+    return isinstance(v, type) and (issubclass(v, BaseModel)
+                                    or (dataclasses.is_dataclass(v)
+                                        and hasattr(v, "__pydantic_fields__")))
+
+
+def _fields(model: Any) -> dict:
+    """The fields of a record (model or pydantic dataclass)."""
+    return getattr(model, "model_fields", None) or getattr(model, "__pydantic_fields__", {})
+
+
+_MODEL_NAMES = {n for n, v in vars(schema).items() if _is_record(v)}
 _TAG = re.compile(r"^(float|int|bool|str|none|[a-z-]+\[.*\])$")
 
 
@@ -79,12 +85,12 @@ def _submodel(loc: tuple, root: type[BaseModel]) -> type[BaseModel] | None:
     for part in loc[:-1]:
         if isinstance(part, int) or model is None:
             continue
-        fld = getattr(model, "model_fields", {}).get(part)
+        fld = _fields(model).get(part)
         if fld is None:
             continue
         ann = fld.annotation
         args = getattr(ann, "__args__", ())
-        candidates = [a for a in (ann, *args) if isinstance(a, type) and issubclass(a, BaseModel)]
+        candidates = [a for a in (ann, *args) if _is_record(a)]
         model = candidates[0] if candidates else None
     return model
 
@@ -108,9 +114,9 @@ def schema_problems(exc: ValidationError, where: str, root: type[BaseModel] = Sc
         key = ".".join(str(p) for p in (*prefix, *loc)) or "(top level)"
         err = errs[0]
         etype = err["type"]
-        if etype == "extra_forbidden":
+        if etype in ("extra_forbidden", "unexpected_keyword_argument"):
             owner = _submodel(loc, root)
-            valid = ", ".join(owner.model_fields) if owner is not None else ""
+            valid = ", ".join(_fields(owner)) if owner is not None else ""
             msg = f"key '{key}': " + unknown.format(valid=valid or "none")
         elif etype == "missing":
             msg = f"key '{key}': required key is missing"
@@ -126,13 +132,17 @@ def schema_problems(exc: ValidationError, where: str, root: type[BaseModel] = Sc
     return out
 
 
+def format_validation_error(exc: ValidationError, where: str,
+                            root: type[BaseModel] = Scenario) -> str:
+    """The first problem of a pydantic error, one line (and how many more there are)."""
+    problems = schema_problems(exc, where, root)
+    more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+    return problems[0].message + more
+
+
 def estimator_problems(data: dict, where: str) -> list[Problem]:
     """``[estimators.NAME]`` of the raw data: filter type, policy and the filter's settings
     (the settings model of :mod:`uwcosim.filters.settings`)."""
-    from uwcosim.filters import ESTIMATORS
-    from uwcosim.filters.policies import POLICIES
-    from uwcosim.filters.settings import settings_model
-
     out: list[Problem] = []
     estimators = data.get("estimators")
     if not isinstance(estimators, dict):
@@ -164,15 +174,9 @@ def estimator_problems(data: dict, where: str) -> list[Problem]:
 
 def validated_settings(spec: EstimatorSpec) -> dict[str, Any]:
     """The filter settings of a validated ``[estimators.NAME]``, as the scenario gives them."""
-    from uwcosim.filters.settings import settings_model
-
     extra = dict(spec.model_extra or {})
     model = settings_model(spec.type).model_validate(extra)
     return model.model_dump(include=set(extra))
-
-
-#: the states of the filters' models (uwcosim.models.tan, uwcosim.models.linear)
-MODEL_STATES = {"tan": ("x", "y", "vx", "vy"), "cv": ("px", "vx", "py", "vy")}
 
 
 def reference_problems(spec: Scenario, where: str) -> list[Problem]:
@@ -267,99 +271,3 @@ def validate_data(data: dict, where: str) -> tuple[Scenario | None, list[Problem
     except ValidationError as exc:
         return None, schema_problems(exc, where) + problems
     return spec, problems + reference_problems(spec, where)
-
-
-# -- levels 2 and 3: the FMUs, the map, the filters -------------------------------------------
-@dataclass
-class CheckReport:
-    """What ``uwcosim check`` found."""
-
-    path: Path
-    problems: list[Problem] = field(default_factory=list)
-    checked: list[str] = field(default_factory=list)
-
-    @property
-    def exit_code(self) -> int:
-        codes = {p.exit_code for p in self.problems}
-        return 0 if not codes else 2 if codes != {3} else 3
-
-
-def check_fmus(loaded) -> list[Problem]:
-    """The scenario against the FMUs' model descriptions (no FMU instantiated)."""
-    from uwcosim.master.master import Master
-
-    try:
-        master = Master(loaded, check_only=True)
-    except UwcosimError as exc:
-        return [Problem.of(exc)]
-    try:
-        problems = [Problem.of(e) for e in master.problems]
-        if not problems and loaded.spec.model is not None:
-            for s in loaded.spec.model.truth:
-                try:
-                    master._slot(s, "model.truth")
-                except UwcosimError as exc:
-                    problems.append(Problem.of(exc))
-        return problems
-    finally:
-        master.close()
-
-
-def check_filters(loaded) -> list[Problem]:
-    """Read the map, build the filters' model and construct every estimator at ``x = 0``."""
-    import numpy as np
-
-    from uwcosim.filters.settings import build
-    from uwcosim.models.factory import build_model
-    from uwcosim.simulation import scenario_map
-
-    spec, where = loaded.spec, str(loaded.path)
-    try:
-        bathy = scenario_map(loaded)
-        if not spec.estimators:
-            return []
-        model = build_model(loaded, bathy)
-    except UwcosimError as exc:
-        return [Problem.of(exc)]
-    out = []
-    for name, es in spec.estimators.items():
-        std = es.initial_std or (spec.estimation.initial_std if spec.estimation else None)
-        P0 = np.diag(np.asarray(std if std else np.ones(model.nx), float) ** 2)
-        try:
-            if P0.shape != (model.nx, model.nx):
-                raise ValueError(f"initial_std has {len(std)} values for {model.nx} states")
-            build(es.type, model, np.zeros(model.nx), P0, validated_settings(es),
-                  rng=np.random.default_rng(0))
-        except (UwcosimError, ValueError, TypeError, MemoryError) as exc:
-            out.append(Problem(f"{where}: key 'estimators.{name}': {exc}"))
-    return out
-
-
-def check_scenario(path: str | Path, overrides=(), overrides_base=None) -> CheckReport:
-    """Every problem of a scenario: schema, references, FMUs, map and filters (nothing runs)."""
-    from dataclasses import replace
-
-    from uwcosim.scenario.load import read_scenario
-
-    report = CheckReport(Path(path))
-    try:
-        data, loaded = read_scenario(path, overrides, overrides_base)
-    except UwcosimError as exc:
-        report.problems.append(Problem.of(exc))
-        return report
-    if loaded.spec is not None:  # an .ssp alone: validated by its reader
-        spec, report.problems = loaded.spec, reference_problems(loaded.spec, str(path))
-    else:
-        spec, report.problems = validate_data(data, str(Path(path)))
-    report.checked.append("schema")
-    if spec is None:
-        return report
-    loaded = replace(loaded, spec=spec)
-    fmu = check_fmus(loaded)
-    report.problems += fmu
-    report.checked.append("FMUs")
-    if not report.problems:
-        report.problems += check_filters(loaded)
-        report.checked.append("map and filters")
-    report.problems = list(dict.fromkeys(report.problems))  # the master repeats run.duration
-    return report

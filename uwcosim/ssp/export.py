@@ -18,9 +18,9 @@ from __future__ import annotations
 import zipfile
 from pathlib import Path
 
-from uwcosim.errors import ScenarioError
+from uwcosim.core.errors import ScenarioError
 from uwcosim.scenario.load import LoadedScenario
-from uwcosim.ssp.xml import FMU_TYPE, NS, UWC_NS
+from uwcosim.scenario.ssp.xml import FMU_TYPE, NS, UWC_NS
 
 _IMPLEMENTATION = {"cs": "CoSimulation", "me": "ModelExchange"}
 _DATE = (1980, 1, 1, 0, 0, 0)
@@ -48,7 +48,7 @@ def _typed(parent, prefix: str, value, unit: str | None = None) -> None:
 def _ssv(name: str, values: dict, variables: dict) -> bytes:
     from lxml import etree
 
-    from uwcosim.master.varmap import fmu_unit
+    from uwcosim.fmi.varmap import fmu_unit
 
     root = etree.Element(f"{{{NS['ssv']}}}ParameterSet", {"version": "1.0", "name": name},
                          nsmap={"ssv": NS["ssv"]})
@@ -67,8 +67,8 @@ def export_ssp(loaded: LoadedScenario, out: str | Path) -> tuple[Path, list[str]
     """Write the truth side of ``loaded`` to ``out``; return the path and what was left out."""
     from lxml import etree
 
-    from uwcosim.master.adapter import read_description
-    from uwcosim.master.varmap import fmu_unit
+    from uwcosim.fmi.adapter import read_description
+    from uwcosim.fmi.varmap import fmu_unit
 
     spec = loaded.spec
     out = Path(out)
@@ -99,7 +99,7 @@ def export_ssp(loaded: LoadedScenario, out: str | Path) -> tuple[Path, list[str]
         if f.map is not None:
             notes.append(f"fmus.{name}.map not exported (the SSP uses the FMU's own names)")
         dropped = [k for k in ("solver", "substeps", "rtol", "period", "timeout_s")
-                   if getattr(f, k) != type(f).model_fields[k].default]
+                   if getattr(f, k) != type(f).__pydantic_fields__[k].default]
         if dropped:
             notes.append(f"fmus.{name}: {', '.join(dropped)} not exported")
         if path not in sources:

@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import lapack
 
-from uwcosim.errors import FilterDivergence
+from uwcosim.core.errors import FilterDivergence
 from uwcosim.filters.grid import projection_kernels as pk
 from uwcosim.filters.grid.partition import Partition
 from uwcosim.filters.numerics import cholesky, kalman_gain, nis, symmetrize

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from uwcosim.filters.grid.jit import _jit, _row_dot, _row_sum
+from uwcosim.core.jit import _jit, _row_dot, _row_sum
 
 
 @_jit

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uwcosim import bspline
+from uwcosim.core import bspline
 from uwcosim.filters.grid.partition import Partition
 
 _TAPS = np.arange(4)
@@ -20,8 +20,9 @@ _TAPS = np.arange(4)
 class TerrainGrid:
     """The bathymetry spline ``h_d`` on a tensor grid, separably: ``W_x C W_y'``.
 
-    Same cubic B-spline and edge clamping as :meth:`Bathymetry.depth` (:mod:`uwcosim.bspline`),
-    at a cost linear in the grid size instead of 16 gathers per point.
+    Same cubic B-spline and edge clamping as :meth:`Bathymetry.depth`
+    (:mod:`uwcosim.core.bspline`), at a cost linear in the grid size instead of 16 gathers per
+    point.
     """
 
     def __init__(self, terrain) -> None:
@@ -35,7 +36,7 @@ class TerrainGrid:
     @staticmethod
     def _weights(s: np.ndarray, n: int):
         """Cell index (column) and the 4 cubic B-spline weights (columns) at positions ``s``
-        (:mod:`uwcosim.bspline`: its clamping, its weights as polynomials)."""
+        (:mod:`uwcosim.core.bspline`: its clamping, its weights as polynomials)."""
         i, f = bspline.cell(s, n)
         f2 = f * f
         return i[:, None], np.stack([np.ones_like(f), f, f2, f2 * f], axis=1) @ bspline.MONOMIAL

@@ -30,7 +30,7 @@ import numpy as np
 import scipy.fft as sfft
 from scipy import ndimage, sparse
 
-from uwcosim.errors import FilterDivergence
+from uwcosim.core.errors import FilterDivergence
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.grid import projection_kernels as pk  # imports point_mass_kernels
 from uwcosim.filters.grid.conditional import (

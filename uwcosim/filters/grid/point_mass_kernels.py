@@ -14,8 +14,8 @@ import math
 
 import numpy as np
 
+from uwcosim.core.jit import _jit, _jit_fast, _max2, _row_sum, _sum2
 from uwcosim.filters.grid.grid_moments import _marginals2, _moments2, _moments2_marginals
-from uwcosim.filters.grid.jit import _jit, _jit_fast, _max2, _row_sum, _sum2
 from uwcosim.filters.grid.projection_kernels import TWO_PI, _sym, terrain_depth
 
 # ---------------------------------------------------------------------------------------------

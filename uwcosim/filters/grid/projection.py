@@ -71,7 +71,7 @@ import numpy as np
 from scipy.linalg import expm
 from scipy.sparse.linalg import expm_multiply
 
-from uwcosim.errors import FilterDivergence
+from uwcosim.core.errors import FilterDivergence
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.grid import projection_kernels as pk
 from uwcosim.filters.grid import spectral as po

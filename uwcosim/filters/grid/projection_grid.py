@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uwcosim.filters.grid.jit import _jit
+from uwcosim.core.jit import _jit
 
 TWO_PI = 2.0 * np.pi
 

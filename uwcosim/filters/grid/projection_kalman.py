@@ -17,8 +17,8 @@ import math
 
 import numpy as np
 
+from uwcosim.core.jit import _jit, _sum2
 from uwcosim.filters.grid.grid_moments import _marginals2
-from uwcosim.filters.grid.jit import _jit, _sum2
 from uwcosim.filters.grid.projection_kernels import (
     _posterior_moments,
     _sym,

@@ -41,14 +41,7 @@ import math
 
 import numpy as np
 
-from uwcosim.filters.grid.grid_moments import (
-    _floor_moments,
-    _moments2,
-    _moments2_cols,
-    grid_moments2,
-    moments2,
-)
-from uwcosim.filters.grid.jit import (
+from uwcosim.core.jit import (
     ENABLED,
     _col_max,
     _col_min_max,
@@ -60,6 +53,13 @@ from uwcosim.filters.grid.jit import (
     _neg_sum2,
     _row_sum,
     interrupted,
+)
+from uwcosim.filters.grid.grid_moments import (
+    _floor_moments,
+    _moments2,
+    _moments2_cols,
+    grid_moments2,
+    moments2,
 )
 from uwcosim.filters.grid.projection_grid import (  # noqa: F401  (re-exported)
     TWO_PI,

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from uwcosim.filters.grid.jit import _jit
+from uwcosim.core.jit import _jit
 from uwcosim.filters.grid.spectral import TWO_PI
 
 # exponents up to this size (|log| of every separated decay factor and of their products)

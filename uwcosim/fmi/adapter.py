@@ -1,0 +1,496 @@
+"""One FMU instance behind one small interface, whatever its FMI version and interface type.
+
+:class:`FMUAdapter` wraps fmpy's low-level classes (``FMU2Slave``, ``FMU3Slave`` for
+co-simulation; ``FMU2Model``, ``FMU3Model`` for model exchange, stepped by
+:class:`~uwcosim.fmi.solvers.ModelExchange`). Everything that can be done once is done once:
+the archive is checked (:mod:`uwcosim.fmi.archive`) and unzipped once, value references are
+resolved by name once, and :class:`~uwcosim.fmi.binding.Binding` keeps ctypes arrays (with
+numpy views on them) ready so a step costs only the FMI calls themselves. Every FMI 2/3 scalar
+type is handled (:mod:`uwcosim.fmi.vartypes`); FMI 3 arrays as parameters and start values.
+
+An FMU that asks to stop (co-simulation: FMI 2 ``fmi2Discard`` with ``fmi2Terminated``, FMI 3
+``terminateSimulation``; model exchange: ``terminateSimulation`` of an event update or of
+``completedIntegratorStep``) is not an error: ``do_step`` returns the time reached and
+:attr:`FMUAdapter.terminated` holds ``(time, reason)``.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import shutil
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from fmpy.model_description import ModelDescription, ModelVariable
+
+import numpy as np
+
+from uwcosim.core.errors import FMUError, ScenarioError
+from uwcosim.fmi.archive import (
+    archive_problems,
+    binary_problems,
+    open_description,
+    read_model,
+    sha256_file,
+    unzip,
+)
+from uwcosim.fmi.binding import Binding, make_binding
+from uwcosim.fmi.varmap import VariableMap, resolve_map
+from uwcosim.fmi.vartypes import FLOAT64, coerce, is_continuous_input, kind, type_info
+
+__all__ = ["Binding", "FMUAdapter", "read_description", "sha256_file"]
+
+STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
+
+
+def read_description(path: Path, interface: str | None = None) -> ModelDescription:
+    """Model description of an FMU archive, with one-line errors for the usual faults."""
+    return open_description(path, interface)
+
+
+class FMUAdapter:
+    """A single FMU instance (FMI 2.0/3.0, CS/ME) with a uniform stepping interface."""
+
+    def __init__(
+        self,
+        name: str,
+        path: Path,
+        interface: str = "cs",
+        solver: str = "rk4",
+        substeps: int = 1,
+        rtol: float = 1e-8,
+        varmap: VariableMap | None = None,
+        unzip_dir: str | Path | None = None,
+    ) -> None:
+        self.name = name
+        self.path = Path(path)
+        problems = archive_problems(self.path)
+        if problems:
+            raise FMUError(problems[0])
+        self.md = read_model(self.path)
+        self.sha256 = sha256_file(self.path) if self.path.is_file() else ""
+        self.fmi3 = self.md.fmiVersion.startswith("3")
+        self.interface = interface
+        self.solver = solver
+        self.substeps = substeps
+        self.rtol = rtol
+        self.unzip_dir = None if unzip_dir is None else Path(unzip_dir)
+        self._own_unzip: str | None = None
+        self.fmu_variables = {v.name: v for v in self.md.modelVariables}
+        self.varmap = varmap or VariableMap.identity(self.md)
+        #: the variables under the names the master uses (roles of a variable map, or as is)
+        self.variables = self.varmap.exposed
+        self.messages: list[str] = []
+        #: ``(time, reason)`` once the FMU asked to stop the simulation, else None
+        self.terminated: tuple[float, str] | None = None
+        kind_ = self.md.coSimulation if interface == "cs" else self.md.modelExchange
+        if kind_ is None:
+            have = [n for n, k in (("cs", self.md.coSimulation), ("me", self.md.modelExchange))
+                    if k is not None]
+            raise FMUError(
+                f"{self.path}: FMU '{name}' does not support interface '{interface}' "
+                f"(it supports: {', '.join(have)})"
+            )
+        problems = binary_problems(self.path, self.md, (interface,))
+        if problems:
+            raise FMUError(problems[0])
+        self.model_identifier = kind_.modelIdentifier
+        self.nx = int(self.md.numberOfContinuousStates or 0) if interface == "me" else 0
+        self.nz = int(self.md.numberOfEventIndicators or 0) if interface == "me" else 0
+        self._fmu = None
+        self._me = None
+        self._pending: list[Binding] = []  # typed bindings made before the library is loaded
+        self._typed: list[Binding] = []  # every typed binding (discrete inputs: last values)
+        self._instantiated = False
+        self.time_s = 0.0  # wall time spent in this FMU's calls (set by the master)
+
+    # -- variables --------------------------------------------------------------------------
+    def variable(self, name: str) -> ModelVariable:
+        v = self.variables.get(name)
+        if v is None:
+            mapped = " (variable map: roles " + ", ".join(self.varmap.aliases) + ")" \
+                if self.varmap.aliases else ""
+            raise FMUError(f"{self.path}: FMU '{self.name}' has no variable {name!r}{mapped}")
+        return v
+
+    def use_map(self, entries: dict[str, dict], role: str | None = None, where: str = "",
+                prefix: str = "") -> VariableMap:
+        """Expose the FMU under the roles of a variable map (before :meth:`bind`)."""
+        vmap, problems = resolve_map(entries, self.md, role, where or str(self.path), prefix)
+        if problems:
+            raise ScenarioError(problems[0])
+        self.varmap = vmap
+        self.variables = vmap.exposed
+        return vmap
+
+    def real_outputs(self) -> list[str]:
+        """Names (as exposed) of the Real outputs, in model-description order."""
+        return [n for n, v in self.variables.items()
+                if v.causality == "output" and v.type in FLOAT64]
+
+    def outputs(self) -> list[str]:
+        """Names (as exposed) of the scalar outputs of every supported type."""
+        return [n for n, v in self.variables.items() if v.causality == "output"
+                and kind(v) != "unsupported" and not getattr(v, "dimensions", None)]
+
+    def feedthrough(self) -> dict[str, set[str]]:
+        """``{output: {inputs it depends on directly}}`` under the exposed names."""
+        from uwcosim.master.graph import feedthrough
+
+        ren = self.varmap.raw_to_exposed
+        return {ren[o]: {ren[i] for i in ins if i in ren}
+                for o, ins in feedthrough(self.md).items() if o in ren}
+
+    def _discrete_input(self, v) -> bool:
+        return self.interface == "me" and v.causality == "input" and not is_continuous_input(v)
+
+    def bind(self, names: list[str] | tuple[str, ...]) -> Binding:
+        variables = [self.variable(n) for n in names]
+        for v in variables:
+            if kind(v) == "unsupported" or getattr(v, "dimensions", None):
+                raise FMUError(f"{self.path}: FMU '{self.name}': variable {v.name!r} has type "
+                               f"{v.type}{' (array)' if kind(v) != 'unsupported' else ''}, "
+                               f"which cannot be connected or logged")
+        affine = [self.varmap.affine(n) for n in names]
+        b = make_binding(tuple(names), variables, affine, self.fmi3,
+                         [self._discrete_input(v) for v in variables])
+        if not b.groups:
+            return b
+        self._typed.append(b)
+        if self._fmu is not None:
+            self._resolve_groups(b)
+        else:
+            self._pending.append(b)
+        return b
+
+    def _resolve_groups(self, b: Binding) -> None:
+        for g in b.groups:
+            if isinstance(g.get, str):
+                g.get, g.set = self._raw[g.get], self._raw[g.set]
+
+    def check_values(self, values: dict, where: str = "") -> dict:
+        """Parameters/start values checked against the declared types and converted (native
+        Python values); ScenarioError naming the variable and the expected type otherwise."""
+        where = where or f"{self.path}: FMU '{self.name}'"
+        out = {}
+        for name, value in values.items():
+            alias = self.varmap.aliases.get(name)
+            if alias is not None:
+                out[name] = coerce(alias.start_var or alias.var, value, where)
+                continue
+            v = self.fmu_variables.get(name)
+            if v is None:
+                raise FMUError(f"{self.path}: FMU '{self.name}' has no variable {name!r}")
+            out[name] = coerce(v, value, where)
+        return out
+
+    # -- life cycle -------------------------------------------------------------------------
+    def _log(self, *args) -> None:
+        # FMI 2: (component, instanceName, status, category, message)
+        # FMI 3: (instanceEnvironment, status, category, message)
+        message = args[-1]
+        status = args[-3]
+        text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+        text = text.replace("%%", "%")  # FMI 2 messages are printf formats
+        label = STATUS[status] if 0 <= status < len(STATUS) else str(status)
+        self.messages.append(f"[{label}] {text}")
+        del self.messages[:-20]
+
+    def _unzip(self) -> str:
+        if self.path.is_dir():  # an unzipped FMU: used where it is
+            return str(self.path)
+        if self.unzip_dir is not None:
+            return str(unzip(self.path, self.unzip_dir))
+        if self._own_unzip is None:
+            self._own_unzip = tempfile.mkdtemp(prefix="uwcosim_fmu_")
+            unzip(self.path, self._own_unzip)
+        return self._own_unzip
+
+    def instantiate(self, parameters: dict, start: dict, t0: float, t_stop: float) -> None:
+        """Instantiate, set parameters and start values, and initialize at ``t0``.
+
+        An adapter that already holds an instance resets it (``fmi2Reset``/``fmi3Reset``) and
+        initializes it again instead: campaigns reuse one instance per worker for many runs.
+        """
+        from fmpy import fmi2, fmi3
+
+        values = self.check_values({**parameters, **start})
+        self.terminated = None
+        if self._fmu is not None:
+            self.messages.clear()
+            self._guard("reset", self._fmu.reset, t0)
+            self._guard("setup", lambda: self._initialize(self._fmu, values, t0, t_stop), t0)
+            return
+        unzip_dir = self._unzip()
+        guid = self.md.instantiationToken if self.fmi3 else self.md.guid
+        cls = {
+            (False, "cs"): fmi2.FMU2Slave, (False, "me"): fmi2.FMU2Model,
+            (True, "cs"): fmi3.FMU3Slave, (True, "me"): fmi3.FMU3Model,
+        }[(self.fmi3, self.interface)]
+        cwd = os.getcwd()  # fmpy changes into the binary's folder and, if loading fails, stays
+        try:
+            fmu = cls(guid=guid, unzipDirectory=unzip_dir, modelIdentifier=self.model_identifier,
+                      instanceName=self.name)
+            if self.fmi3:
+                fmu.instantiate(logMessage=self._log, loggingOn=False)
+            else:
+                cb = fmi2.fmi2CallbackFunctions()
+                cb.logger = fmi2.fmi2CallbackLoggerTYPE(self._log)
+                cb.allocateMemory = fmi2.fmi2CallbackAllocateMemoryTYPE(fmi2.calloc)
+                cb.freeMemory = fmi2.fmi2CallbackFreeMemoryTYPE(fmi2.free)
+                # no fmpy logger proxy: it keeps one process-wide logger, which would route every
+                # instance's messages to the last adapter (and crash once that one is gone)
+                self._callbacks = cb
+                fmu.instantiate(callbacks=cb)
+        except FMUError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions here
+            raise FMUError(f"{self.path}: cannot instantiate FMU '{self.name}' ({exc})") from None
+        finally:
+            if os.getcwd() != cwd:
+                os.chdir(cwd)
+        self._fmu = fmu
+        self._instantiated = True
+        self._raw = fmu._functions
+        self._c = fmu.component
+        self._prepare_fast_calls()
+        for b in self._pending:
+            self._resolve_groups(b)
+        self._pending = []
+        self._guard("setup", lambda: self._initialize(fmu, values, t0, t_stop), t0)
+
+    def _initialize(self, fmu, values: dict, t0: float, t_stop: float) -> None:
+        if not self.fmi3:
+            fmu.setupExperiment(startTime=t0)
+        self.set_values(values, checked=True)
+        if self.fmi3:
+            fmu.enterInitializationMode(startTime=t0)
+        else:
+            fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        if self.interface == "me":
+            from uwcosim.fmi.solvers import ModelExchange
+
+            for b in self._typed:  # a new run: every discrete input is set again
+                for g in b.groups:
+                    g.last = None
+            self._me = ModelExchange(self, t0, t_stop)
+            self._me.initial_event(t0)
+
+    def set_values(self, values: dict, checked: bool = False) -> None:
+        """Set parameters/start values of any type by name (setup only, not the hot path)."""
+        fmu = self._fmu
+        if not checked:
+            values = self.check_values(values)
+        for name, value in values.items():
+            alias = self.varmap.aliases.get(name)
+            if alias is not None:  # a role: its start variable (or itself), converted
+                v = alias.start_var or alias.var
+                value = alias.to_fmu(value)
+            else:
+                v = self.fmu_variables[name]
+            vals = value if isinstance(value, list) else [value]
+            suffix = type_info(v, self.fmi3)[2]
+            getattr(fmu, f"set{suffix}")([v.valueReference], vals)
+
+    def get_values(self, names: list[str]) -> dict:
+        """Current values of any type by name (native Python values; arrays as lists)."""
+        out = {}
+        for name in names:
+            v = self.variable(name)
+            info = type_info(v, self.fmi3)
+            if info is None:
+                raise FMUError(f"{self.path}: FMU '{self.name}': cannot get {name!r} of type "
+                               f"{v.type}")
+            getter = getattr(self._fmu, f"get{info[2]}")
+            n = int(np.prod(v.shape)) if getattr(v, "dimensions", None) else 1
+            vals = getter([v.valueReference], n) if self.fmi3 else getter([v.valueReference])
+            vals = [bool(x) for x in vals] if info[0] == "bool" else [
+                x.decode("utf-8", "replace") if isinstance(x, bytes) else x for x in vals]
+            a = self.varmap.aliases.get(name)
+            out[name] = vals if n != 1 or getattr(v, "dimensions", None) else (
+                a.to_ours(vals[0]) if a is not None else vals[0])
+        return out
+
+    def _prepare_fast_calls(self) -> None:
+        p = "fmi3" if self.fmi3 else "fmi2"
+        self._set = self._raw[f"{p}SetFloat64" if self.fmi3 else "fmi2SetReal"]
+        self._get = self._raw[f"{p}GetFloat64" if self.fmi3 else "fmi2GetReal"]
+        if self.interface == "cs":
+            self._do_step = self._raw[f"{p}DoStep"]
+            self._flags = [ctypes.c_bool() for _ in range(3)] + [ctypes.c_double()]
+            self._flag_refs = [ctypes.byref(f) for f in self._flags]
+            self._terminate_flag, self._early_flag = self._flags[1], self._flags[2]
+
+    # -- hot path ---------------------------------------------------------------------------
+    def _check(self, status: int, what: str, t: float) -> None:
+        if status > 1:
+            label = STATUS[status] if status < len(STATUS) else str(status)
+            last = f": {self.messages[-1]}" if self.messages else ""
+            raise FMUError(f"FMU '{self.name}' ({self.path.name}): {what} returned {label} "
+                           f"at t={t:g}{last}")
+
+    def _guard(self, what: str, fn: Callable, t: float):
+        try:
+            return fn()
+        except (FMUError, ScenarioError):
+            raise
+        except Exception as exc:  # noqa: BLE001 - fmpy's FMICallException and friends
+            last = f": {self.messages[-1]}" if self.messages else ""
+            raise FMUError(f"FMU '{self.name}' ({self.path.name}): {what} failed at t={t:g} "
+                           f"({exc}){last}") from None
+
+    def _set_groups(self, b: Binding, groups, t: float) -> None:
+        b.to_fmu()
+        for g in groups:
+            b.raw_to_group(g)
+            if self.fmi3:
+                st = g.set(self._c, g.vr, g.n, g.buf, g.n)
+            else:
+                st = g.set(self._c, g.vr, g.n, g.buf)
+            self._check(st, "set inputs", t)
+
+    def set_continuous(self, b: Binding, t: float) -> None:
+        """Set the inputs that may change in continuous-time mode (all of them for CS)."""
+        if not b.n:
+            return
+        if b.groups:
+            self._set_groups(b, b.continuous_groups, t)
+            return
+        if b.scale is not None:
+            b.to_fmu()
+        if self.fmi3:
+            st = self._set(self._c, b.vr, b.n, b.buf, b.n)
+        else:
+            st = self._set(self._c, b.vr, b.n, b.buf)
+        self._check(st, "set inputs", t)
+
+    def set_inputs(self, b: Binding, t: float) -> None:
+        """Set the inputs at a communication point. Model exchange: discrete inputs that changed
+        are set in event mode (with the event iteration that follows)."""
+        self.set_continuous(b, t)
+        if b.groups and self._me is not None and b.discrete_groups:
+            self._me.set_discrete(b, t)
+
+    def get_outputs(self, b: Binding, t: float) -> np.ndarray:
+        if not b.n:
+            return b.view
+        if b.groups:
+            for g in b.groups:
+                if self.fmi3:
+                    st = g.get(self._c, g.vr, g.n, g.buf, g.n)
+                else:
+                    st = g.get(self._c, g.vr, g.n, g.buf)
+                self._check(st, "get outputs", t)
+            b.groups_to_raw()
+            return b.view
+        st = (self._get(self._c, b.vr, b.n, b.buf, b.n) if self.fmi3 else
+              self._get(self._c, b.vr, b.n, b.buf))
+        if st > 1:
+            self._check(st, "get outputs", t)
+        if b.scale is not None:
+            b.from_fmu()
+        return b.view
+
+    def do_step(self, t: float, h: float, inputs: Binding, input_fn: Callable | None) -> float:
+        """Advance from ``t`` to ``t + h``; return the time reached (earlier than ``t + h`` only
+        when the FMU asked to stop: see :attr:`terminated`). Inputs are in ``inputs.view``
+        (held over the step); for model exchange ``input_fn(t, view)`` may refresh the
+        continuous ones at the integrator's stage times."""
+        if self.terminated is not None:
+            raise FMUError(f"FMU '{self.name}' ({self.path.name}): doStep at t={t:g} after the "
+                           f"FMU asked to stop at t={self.terminated[0]:g}")
+        if self._me is not None:
+            return self._me.step(t, h, inputs, input_fn)
+        b = inputs
+        if b.n:  # set_inputs inlined: the co-simulation hot path
+            if b.groups:
+                self._set_groups(b, b.groups, t)
+            else:
+                if b.scale is not None:
+                    b.to_fmu()
+                st = (self._set(self._c, b.vr, b.n, b.buf, b.n) if self.fmi3 else
+                      self._set(self._c, b.vr, b.n, b.buf))
+                if st > 1:
+                    self._check(st, "set inputs", t)
+        if self.fmi3:
+            st = self._do_step(self._c, t, h, True, *self._flag_refs)
+            if self._terminate_flag.value or self._early_flag.value:
+                return self._fmi3_stopped(st, t, h)
+        else:
+            st = self._do_step(self._c, t, h, 1)
+            if st == 2 and self._fmi2_terminated():
+                t_end = self._fmi2_last_time(t)
+                self.terminated = (t_end, self._reason("fmi2Terminated"))
+                return t_end
+        if st > 1:
+            self._check(st, "doStep", t)
+        return t + h
+
+    def _fmi3_stopped(self, st: int, t: float, h: float) -> float:
+        """FMI 3 doStep with terminateSimulation or earlyReturn set."""
+        if self._terminate_flag.value and st <= 2:
+            last = self._flags[3].value  # the FMU's time when doStep returned
+            t_end = last if t <= last <= t + h else t + h
+            self.terminated = (t_end, self._reason("terminateSimulation"))
+            return t_end
+        self._check(st, "doStep", t)
+        raise FMUError(f"FMU '{self.name}' ({self.path.name}): doStep returned early at "
+                       f"t={self._flags[3].value:g} (early return was not allowed)")
+
+    def _reason(self, what: str) -> str:
+        """``terminateSimulation`` / ``fmi2Terminated`` and the FMU's last log message."""
+        return f"{what}: {self.messages[-1]}" if self.messages else what
+
+    def _fmi2_terminated(self) -> bool:
+        flag = ctypes.c_int(0)
+        st = self._raw["fmi2GetBooleanStatus"](self._c, 3, ctypes.byref(flag))  # fmi2Terminated
+        return st <= 1 and bool(flag.value)
+
+    def _fmi2_last_time(self, t: float) -> float:
+        value = ctypes.c_double(t)
+        st = self._raw["fmi2GetRealStatus"](self._c, 2, ctypes.byref(value))
+        return value.value if st <= 1 else t
+
+    # -- model exchange -----------------------------------------------------------------------
+    @property
+    def solver_used(self) -> str:
+        """``rk4``/``adaptive`` (no events) or ``cvode`` (event-aware); after instantiate."""
+        return self._me.solver_name if self._me is not None else self.solver
+
+    @property
+    def event_times(self) -> list[float]:
+        """Model exchange: times of the events handled since initialization."""
+        return self._me.event_times if self._me is not None else []
+
+    def states(self) -> np.ndarray:
+        return self._me.states()
+
+    # -- end ----------------------------------------------------------------------------------
+    def reset(self) -> None:
+        if self._fmu is not None:
+            self._guard("reset", self._fmu.reset, 0.0)
+
+    def close(self) -> None:
+        fmu, self._fmu = self._fmu, None
+        self._me = None
+        if fmu is not None:
+            try:
+                fmu.terminate()
+            except Exception:  # noqa: BLE001 - terminate after an error may fail; free anyway
+                pass
+            try:
+                fmu.freeInstance()
+            except Exception:  # noqa: BLE001
+                pass
+        if self._own_unzip is not None:
+            d, self._own_unzip = self._own_unzip, None
+            try:
+                fmu.freeLibrary() if fmu is not None else None
+            except Exception:  # noqa: BLE001
+                pass
+            shutil.rmtree(d, ignore_errors=True)

@@ -1,0 +1,157 @@
+"""The FMU archive: one validator for the master and ``uwcosim fmu info`` / ``fmu check``.
+
+:func:`archive_problems` finds what makes a file unusable as an FMU before anything is loaded:
+missing file, not a zip archive, a member whose compressed data is corrupt (bad CRC or bad
+deflate stream: every member is read once), a member name that is absolute or climbs out of
+the folder with ``..`` (it would be extracted outside the FMU's folder), no
+``modelDescription.xml``. :func:`binary_problems` checks the shared library of this platform
+for each interface (FMI 2 ``binaries/linux64``, FMI 3 ``binaries/x86_64-linux``).
+:func:`open_description` runs both and raises one-line :class:`~uwcosim.core.errors.FMUError` s;
+:func:`unzip` extracts a checked archive.
+
+A folder that holds an unzipped FMU (``modelDescription.xml`` at its top) is accepted too.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import zipfile
+import zlib
+from pathlib import Path, PurePosixPath
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from fmpy.model_description import ModelDescription
+
+from uwcosim.core.errors import FMUError
+
+INTERFACE_NAMES = {"cs": "co-simulation", "me": "model exchange"}
+
+
+def sha256_file(path: Path) -> str:
+    """SHA-256 of a file (hex), read in 1 MiB blocks."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _bad_member_name(name: str) -> bool:
+    if name.startswith(("/", "\\")) or (len(name) > 1 and name[1] == ":"):
+        return True
+    return ".." in PurePosixPath(name.replace("\\", "/")).parts
+
+
+def member_names(path: Path) -> list[str]:
+    """The archive's member names (or, for a folder, its files relative to it)."""
+    path = Path(path)
+    if path.is_dir():
+        return [p.relative_to(path).as_posix() for p in path.rglob("*") if p.is_file()]
+    with zipfile.ZipFile(path) as zf:
+        return zf.namelist()
+
+
+def _build_hint(path: Path) -> str:
+    """The 'uwcosim fmu build' hint, for the project's own FMUs only."""
+    from uwcosim.fmu.build import FMI_VERSIONS, archive_name
+    from uwcosim.fmu.specs import MODELS
+
+    own = {archive_name(m, v) for m in MODELS for v in FMI_VERSIONS}
+    return " (build the project's FMUs with 'uwcosim fmu build')" if path.name in own else ""
+
+
+def archive_problems(path: str | Path) -> list[str]:
+    """Problems that make ``path`` unusable as an FMU archive (empty list: readable)."""
+    path = Path(path)
+    if not path.exists():
+        return [f"{path}: FMU not found{_build_hint(path)}"]
+    if path.is_dir():
+        return [] if (path / "modelDescription.xml").is_file() else [
+            f"{path}: not an FMU (folder without modelDescription.xml)"]
+    try:
+        with zipfile.ZipFile(path) as zf:
+            names = zf.namelist()
+            bad = [n for n in names if _bad_member_name(n)]
+            if bad:
+                return [f"{path}: unsafe FMU archive (member name {bad[0]!r} is absolute or "
+                        f"contains '..')"]
+            for info in zf.infolist():  # inflate every member and check its CRC
+                try:
+                    with zf.open(info) as fh:
+                        while fh.read(1 << 20):
+                            pass
+                except (zipfile.BadZipFile, zlib.error, EOFError) as exc:
+                    return [f"{path}: corrupt FMU archive (member {info.filename!r}: {exc})"]
+    except zipfile.BadZipFile as exc:
+        return [f"{path}: not a valid FMU archive ({exc})"]
+    except (OSError, ValueError, NotImplementedError) as exc:
+        return [f"{path}: cannot read the FMU archive ({type(exc).__name__}: {exc})"]
+    if "modelDescription.xml" not in names:
+        return [f"{path}: not an FMU (no modelDescription.xml in the archive)"]
+    return []
+
+
+def read_model(path: str | Path) -> ModelDescription:
+    """The model description of an archive :func:`archive_problems` found readable."""
+    from fmpy.model_description import read_model_description
+
+    try:
+        return read_model_description(str(path), validate=False)
+    except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for bad XML
+        raise FMUError(f"{path}: invalid modelDescription.xml ({exc})") from None
+
+
+def binary_problems(path: str | Path, md: ModelDescription,
+                    interfaces: tuple[str, ...] = ("cs", "me"),
+                    names: list[str] | None = None) -> list[str]:
+    """A problem if an interface in ``interfaces`` the FMU declares has no shared library for
+    this platform (FMI 2: ``binaries/<fmpy.platform>``, FMI 3: ``binaries/<platform_tuple>``)."""
+    import fmpy
+
+    path = Path(path)
+    plat = fmpy.platform_tuple if md.fmiVersion.startswith("3") else fmpy.platform
+    names = member_names(path) if names is None else names
+    for iface in interfaces:
+        kind = md.coSimulation if iface == "cs" else md.modelExchange
+        if kind is None:
+            continue
+        lib = f"binaries/{plat}/{kind.modelIdentifier}{fmpy.sharedLibraryExtension}"
+        if lib not in names:
+            found = sorted({n.split("/")[1] for n in names
+                            if n.startswith("binaries/") and n.count("/") >= 2})
+            return [f"{path}: no binary for this platform {plat} ({INTERFACE_NAMES[iface]}: "
+                    f"expected {lib}; binaries in the archive: {', '.join(found) or 'none'})"]
+    return []
+
+
+def open_description(path: str | Path, interface: str | None = None) -> ModelDescription:
+    """Validate the archive (and the binary for ``interface``, or every interface when None)
+    and return its model description; the first problem as a one-line :class:`FMUError`."""
+    path = Path(path)
+    problems = archive_problems(path)
+    if problems:
+        raise FMUError(problems[0])
+    md = read_model(path)
+    ifaces = ("cs", "me") if interface is None else (interface,)
+    problems = binary_problems(path, md, ifaces)
+    if problems:
+        raise FMUError(problems[0])
+    return md
+
+
+def unzip(path: str | Path, into: str | Path) -> Path:
+    """Extract the (checked) archive ``path`` into the folder ``into`` unless it already holds
+    it (``modelDescription.xml`` present); a folder FMU is used where it is."""
+    path, into = Path(path), Path(into)
+    if path.is_dir():
+        return path
+    if (into / "modelDescription.xml").is_file():
+        return into
+    into.mkdir(parents=True, exist_ok=True)
+    try:
+        with zipfile.ZipFile(path) as zf:
+            zf.extractall(into)
+    except (zipfile.BadZipFile, zlib.error, OSError, EOFError) as exc:
+        raise FMUError(f"{path}: cannot extract the FMU archive into {into} ({exc})") from None
+    return into

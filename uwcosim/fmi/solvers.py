@@ -1,0 +1,369 @@
+"""Model-exchange stepping: the FMI 2.0 / 3.0 ME state machine between communication points.
+
+:class:`ModelExchange` advances one ME FMU instance from ``t`` to ``t + h`` (a communication
+step of the master) and chooses the integrator once, after initialization:
+
+- **Fixed-step RK4** (``solver = "rk4"``, ``substeps`` per step) or scipy's **DOP853**
+  (``"adaptive"``) for FMUs without events: no event indicators and no time event after the
+  initial event iteration. This is the project's fast path (its TAN FMUs); results are those of
+  earlier versions bit for bit. ``completedIntegratorStep`` is called once per step; a step
+  event is handled at the end of the step; an FMU that defines a time event later switches to
+  the event-aware path.
+- **Event-aware** (``cvode``): SUNDIALS CVode (BDF, fmpy's ``fmpy.sundials.CVodeSolver``) with
+  root finding on the event indicators, as ``fmpy.simulate_fmu`` integrates ME FMUs: the
+  integration stops at each time event (``nextEventTime``) and each state event (a root of an
+  event indicator, located to CVode's root tolerance), calls ``completedIntegratorStep``
+  (step events), then enters event mode, runs the ``newDiscreteStates`` /
+  ``updateDiscreteStates`` iteration until no more is needed and re-initializes CVode at the
+  event time (new states, nominals, event indicators). Events between communication points are
+  handled inside the step. Relative tolerance ``rtol``; absolute ``rtol * nominal``; largest
+  internal step ``(t_stop - t0) / 50`` (fmpy's choice).
+
+Discrete inputs (Integer, Boolean, String, or discrete Real) are set in event mode at the
+communication point when they changed (the FMU refuses them in continuous-time mode).
+``terminateSimulation`` from an event update or from ``completedIntegratorStep`` stops the
+integration at that time and sets :attr:`FMUAdapter.terminated`.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from uwcosim.fmi.adapter import FMUAdapter
+    from uwcosim.fmi.binding import Binding
+
+import numpy as np
+
+from uwcosim.core.errors import FMUError
+from uwcosim.core.integrators import rk4
+
+#: event iterations allowed before the FMU is declared not converging
+MAX_EVENT_ITERATIONS = 1000
+#: CVode's internal steps allowed per call (fmpy: 500, enough for its output intervals; a
+#: master's communication step may be long). The results do not depend on it.
+MAX_CVODE_STEPS = 100_000
+#: event times kept in :attr:`ModelExchange.event_times`
+MAX_LOGGED_EVENTS = 100_000
+
+
+def _close(a: float, b: float) -> bool:
+    return abs(a - b) <= 1e-12 * max(1.0, abs(a), abs(b))
+
+
+def dop853(deriv: Callable, x0: np.ndarray, t: float, h: float, rtol: float,
+           name: str) -> np.ndarray:
+    """scipy's adaptive DOP853 from ``t`` to ``t + h`` (no events)."""
+    from scipy.integrate import solve_ivp
+
+    sol = solve_ivp(deriv, (t, t + h), x0, method="DOP853", rtol=rtol, atol=rtol * 1e-3)
+    if not sol.success:
+        raise FMUError(f"FMU '{name}': adaptive solver failed at t={t:g} ({sol.message})")
+    return sol.y[:, -1]
+
+
+class _NoInput:
+    """fmpy's CVodeSolver applies ``input.apply(t)`` in its root function: inputs are ours."""
+
+    @staticmethod
+    def apply(t: float, **_) -> None:
+        return None
+
+
+@functools.cache
+def _cvode_class():
+    from fmpy.sundials import CVodeSolver
+    from fmpy.sundials.libraries import sundials_core
+    from fmpy.sundials.sundials_context import SUNContext_PushErrHandler
+    from fmpy.sundials.sundials_types import SUNContext
+
+    class CVode(CVodeSolver):
+        """fmpy's CVode with callbacks that report an FMU error instead of printing it."""
+
+        error: Exception | None = None
+
+        def __init__(self, **kwargs) -> None:
+            super().__init__(**kwargs)
+            # only fmpy's handler (it keeps the message for the exception): SUNDIALS' default
+            # one would also print it to stderr, and the CLI's errors are one line
+            clear = sundials_core.SUNContext_ClearErrHandlers
+            clear.argtypes, clear.restype = [SUNContext], ctypes.c_int
+            if clear(self.sunctx) == 0:
+                SUNContext_PushErrHandler(self.sunctx, self.ehfun_, None)
+
+        def f(self, t, y, ydot, user_data):
+            try:
+                return super().f(t, y, ydot, user_data)
+            except Exception as exc:  # noqa: BLE001 - raised again after CVode returns
+                self.error = exc
+                return -1
+
+        def g(self, t, y, gout, user_data):
+            try:
+                return super().g(t, y, gout, user_data)
+            except Exception as exc:  # noqa: BLE001
+                self.error = exc
+                return -1
+
+    return CVode
+
+
+class ModelExchange:
+    """Steps one model-exchange FMU instance (see the module docstring)."""
+
+    def __init__(self, adapter: FMUAdapter, t0: float, t_stop: float) -> None:
+        self.ad = ad = adapter
+        p = "fmi3" if ad.fmi3 else "fmi2"
+        raw, self._c = ad._raw, ad._c
+        self.nx, self.nz = ad.nx, ad.nz
+        self._x = (ctypes.c_double * self.nx)()
+        self._dx = (ctypes.c_double * self.nx)()
+        self.xv = np.ctypeslib.as_array(self._x) if self.nx else np.zeros(0)
+        self.dxv = np.ctypeslib.as_array(self._dx) if self.nx else np.zeros(0)
+        self._set_time = raw[f"{p}SetTime"]
+        self._set_states = raw[f"{p}SetContinuousStates"]
+        self._get_states = raw[f"{p}GetContinuousStates"]
+        self._get_der = raw["fmi3GetContinuousStateDerivatives" if ad.fmi3 else
+                            "fmi2GetDerivatives"]
+        self._get_z = raw[f"{p}GetEventIndicators"]
+        self._get_nominals = raw[f"{p}GetNominalsOfContinuousStates"]
+        self._completed = raw[f"{p}CompletedIntegratorStep"]
+        self._enter_event = raw[f"{p}EnterEventMode"]
+        flag = ctypes.c_bool if ad.fmi3 else ctypes.c_int
+        self._cflags = [flag(), flag()]
+        self._cflag_refs = [ctypes.byref(f) for f in self._cflags]
+        self._true = True if ad.fmi3 else 1  # noSetFMUStatePriorToCurrentPoint
+        self.t0, self.t_stop = t0, t_stop
+        self.max_step = (t_stop - t0) / 50.0 if t_stop > t0 else math.inf
+        self.next_event: float | None = None
+        self.solver_name = "cvode" if self.nz else ad.solver
+        self.cvode = None
+        self._t = t0
+        self._inputs = None
+        self._input_fn = None
+        #: times of the events handled after initialization (the first MAX_LOGGED_EVENTS)
+        self.event_times: list[float] = []
+
+    # -- event mode ---------------------------------------------------------------------------
+    def _iterate(self, t: float) -> None:
+        fmu = self.ad._fmu
+        update = fmu.updateDiscreteStates if self.ad.fmi3 else fmu.newDiscreteStates
+        for _ in range(MAX_EVENT_ITERATIONS):
+            need, terminate, _, _, defined, t_next = self.ad._guard("event update", update, t)
+            if terminate:
+                self.ad.terminated = (t, self.ad._reason("terminateSimulation (event update)"))
+                return
+            if not need:
+                self.next_event = float(t_next) if defined else None
+                return
+        raise FMUError(f"FMU '{self.ad.name}' ({self.ad.path.name}): event iteration did not "
+                       f"converge at t={t:g} ({MAX_EVENT_ITERATIONS} iterations)")
+
+    def initial_event(self, t0: float) -> None:
+        """After exitInitializationMode (event mode): iterate, then continuous-time mode."""
+        self._iterate(t0)
+        if self.ad.terminated is None:
+            self.ad._guard("enterContinuousTimeMode", self.ad._fmu.enterContinuousTimeMode, t0)
+        if self.next_event is not None:
+            self.solver_name = "cvode"
+
+    def _event(self, t: float, before=None) -> None:
+        self.ad._check(self._enter_event(self._c), "enterEventMode", t)
+        if before is not None:
+            before()
+        if len(self.event_times) < MAX_LOGGED_EVENTS:
+            self.event_times.append(t)
+        self._iterate(t)
+        if self.ad.terminated is None:
+            self.ad._guard("enterContinuousTimeMode", self.ad._fmu.enterContinuousTimeMode, t)
+        if self.next_event is not None:
+            self.solver_name = "cvode"  # a time event from now on: the event-aware path
+        if self.cvode is not None:
+            self.cvode.reset(t)
+
+    def set_discrete(self, b: Binding, t: float) -> None:
+        """Set the discrete inputs of ``b`` that changed, in event mode (one event)."""
+        b.to_fmu()
+        changed = []
+        for g in b.discrete_groups:
+            b.raw_to_group(g)
+            cur = g.arr.copy() if g.arr is not None else [g.buf[j] for j in range(g.n)]
+            same = g.last is not None and (np.array_equal(cur, g.last) if g.arr is not None
+                                           else cur == g.last)
+            if not same:
+                changed.append((g, cur))
+        if not changed or self.ad.terminated is not None:
+            return
+
+        def apply() -> None:
+            for g, cur in changed:
+                if self.ad.fmi3:
+                    st = g.set(self._c, g.vr, g.n, g.buf, g.n)
+                else:
+                    st = g.set(self._c, g.vr, g.n, g.buf)
+                self.ad._check(st, "set discrete inputs", t)
+                g.last = cur
+
+        self._event(t, apply)
+
+    # -- stepping -----------------------------------------------------------------------------
+    def states(self) -> np.ndarray:
+        if self.nx:
+            self.ad._check(self._get_states(self._c, self._x, self.nx), "getContinuousStates",
+                           self._t)
+        return self.xv.copy()
+
+    def step(self, t: float, h: float, inputs: Binding, input_fn: Callable | None) -> float:
+        if inputs.groups and inputs.discrete_groups:
+            self.set_discrete(inputs, t)
+        if self.ad.terminated is not None:
+            return self.ad.terminated[0]
+        if self.solver_name == "cvode":
+            return self._step_events(t, t + h, inputs, input_fn)
+        x_end = self._fixed(t, h, inputs, input_fn)
+        self._finish(t + h, x_end, inputs, input_fn)
+        return self.ad.terminated[0] if self.ad.terminated is not None else t + h
+
+    def _deriv(self, t: float, x: np.ndarray, inputs, input_fn) -> np.ndarray:
+        ad = self.ad
+        ad._check(self._set_time(self._c, t), "setTime", t)
+        if input_fn is not None:
+            input_fn(t, inputs.view)
+        ad.set_continuous(inputs, t)
+        if self.nx:
+            self.xv[:] = x
+            ad._check(self._set_states(self._c, self._x, self.nx), "setContinuousStates", t)
+            ad._check(self._get_der(self._c, self._dx, self.nx), "getDerivatives", t)
+        return self.dxv.copy()
+
+    def _fixed(self, t: float, h: float, inputs, input_fn) -> np.ndarray:
+        x = self.states()
+        if self.solver_name == "adaptive":
+            if not self.nx:
+                return x
+            return dop853(lambda tt, xx: self._deriv(tt, xx, inputs, input_fn), x, t, h,
+                          self.ad.rtol, self.ad.name)
+        return rk4(lambda tt, xx: self._deriv(tt, xx, inputs, input_fn), x, t, h,
+                   self.ad.substeps)
+
+    def _finish(self, t: float, x_end: np.ndarray, inputs, input_fn) -> None:
+        ad = self.ad
+        ad._check(self._set_time(self._c, t), "setTime", t)
+        self._t = t
+        if input_fn is not None:
+            input_fn(t, inputs.view)
+        ad.set_continuous(inputs, t)
+        if self.nx:
+            self.xv[:] = x_end
+            ad._check(self._set_states(self._c, self._x, self.nx), "setContinuousStates", t)
+        st = self._completed(self._c, self._true, *self._cflag_refs)
+        ad._check(st, "completedIntegratorStep", t)
+        if self._cflags[1].value:
+            ad.terminated = (t, ad._reason("terminateSimulation (completedIntegratorStep)"))
+            return
+        if self._cflags[0].value:
+            self._event(t)
+
+    # -- event-aware (CVode) ------------------------------------------------------------------
+    # CVode's callbacks (pointer, size): status checked inline, they run per right-hand side
+    def _cb_set_time(self, t: float) -> None:
+        self._t = t
+        st = self._set_time(self._c, t)
+        if st > 1:
+            self.ad._check(st, "setTime", t)
+        if self._input_fn is not None:
+            self._input_fn(t, self._inputs.view)
+            self.ad.set_continuous(self._inputs, t)
+
+    def _cb_get_x(self, p, n) -> None:
+        st = self._get_states(self._c, p, n)
+        if st > 1:
+            self.ad._check(st, "getContinuousStates", self._t)
+
+    def _cb_set_x(self, p, n) -> None:
+        st = self._set_states(self._c, p, n)
+        if st > 1:
+            self.ad._check(st, "setContinuousStates", self._t)
+
+    def _cb_get_dx(self, p, n) -> None:
+        st = self._get_der(self._c, p, n)
+        if st > 1:
+            self.ad._check(st, "getDerivatives", self._t)
+
+    def _cb_get_z(self, p, n) -> None:
+        st = self._get_z(self._c, p, n)
+        if st > 1:
+            self.ad._check(st, "getEventIndicators", self._t)
+
+    def _cb_get_nominals(self, p, n) -> None:
+        self.ad._check(self._get_nominals(self._c, p, n), "getNominalsOfContinuousStates",
+                       self._t)
+
+    def _make_cvode(self, t: float):
+        return _cvode_class()(
+            nx=self.nx, nz=self.nz, get_x=self._cb_get_x, set_x=self._cb_set_x,
+            get_dx=self._cb_get_dx, get_z=self._cb_get_z, get_nominals=self._cb_get_nominals,
+            set_time=self._cb_set_time, input=_NoInput(), startTime=t, maxStep=self.max_step,
+            relativeTolerance=self.ad.rtol, maxNumSteps=MAX_CVODE_STEPS)
+
+    def _integrate(self, time: float, t_next: float) -> tuple[bool, float]:
+        """CVode from ``time`` to ``t_next`` or the first root: ``(state event, time)``."""
+        if not self.nx and not self.nz:  # nothing continuous: jump
+            self._cb_set_time(t_next)
+            return False, t_next
+        if self.cvode is None:
+            self.cvode = self._make_cvode(time)
+        try:
+            state_event, _, reached = self.cvode.step(time, t_next)
+        except RuntimeError as exc:
+            err, self.cvode.error = self.cvode.error, None
+            if isinstance(err, FMUError):
+                raise err from None
+            info = self.cvode.error_info
+            why = err or (info[3] if info else exc)
+            raise FMUError(f"FMU '{self.ad.name}' ({self.ad.path.name}): CVode failed between "
+                           f"t={time:g} and {t_next:g} ({why})") from None
+        return bool(state_event), float(reached)
+
+    def _step_events(self, t: float, t_end: float, inputs, input_fn) -> float:
+        ad = self.ad
+        self._inputs, self._input_fn = inputs, input_fn
+        if input_fn is not None:
+            self._cb_set_time(t)  # refreshes the continuous inputs
+        ad.set_continuous(inputs, t)
+        time, flag_true, same_time = t, self._true, 0
+        while True:
+            t_next, time_event = t_end, False
+            ne = self.next_event
+            if ne is not None and (ne < t_end or _close(ne, t_end)):
+                # an event within rounding of the communication point happens there (fmpy too)
+                t_next, time_event = t_end if _close(ne, t_end) else max(ne, time), True
+            if t_next > time and not _close(t_next, time):
+                state_event, time = self._integrate(time, t_next)
+            else:
+                state_event, time = False, t_next
+            if state_event:
+                time_event = time_event and _close(time, t_next)
+            self._cb_set_time(time)
+            st = self._completed(self._c, flag_true, *self._cflag_refs)
+            if st > 1:
+                ad._check(st, "completedIntegratorStep", time)
+            if self._cflags[1].value:
+                ad.terminated = (time, ad._reason("terminateSimulation (completedIntegratorStep)"))
+                return time
+            if state_event or time_event or self._cflags[0].value:
+                same_time = same_time + 1 if self.event_times and time == self.event_times[-1] \
+                    else 0
+                if same_time > MAX_EVENT_ITERATIONS:
+                    raise FMUError(f"FMU '{ad.name}' ({ad.path.name}): more than "
+                                   f"{MAX_EVENT_ITERATIONS} events at t={time:g} (time events "
+                                   f"that do not advance?)")
+                self._event(time)
+                if ad.terminated is not None:
+                    return time
+            if time >= t_end or _close(time, t_end):
+                return t_end

@@ -1,0 +1,92 @@
+"""What watches a co-simulation: the :class:`Observer` protocol and the :class:`StepView` it gets.
+
+The master knows nothing of what records or filters its run (as libcosim's observers and the
+collectors of ``particles`` are outside their algorithms): it calls each observer's
+``on_step(k, view)`` in one place, :meth:`uwcosim.master.master.Master.notify`, in the order
+the observers were added, once at the start time (``k = 0``, at the end of
+:meth:`~uwcosim.master.master.Master.initialize`) and after every completed step ``k``
+(``t = t0 + k*h``). An observer that raises stops the run there (the master's state is that
+of step ``k``). The view is read-only: the bus is a non-writable array, the measurement the
+sensor bank's record of step ``k``.
+
+Whoever composes a run decides the order (:func:`uwcosim.run.simulate.simulate`: estimator
+bank, log recorder, density snapshots, progress, signal guard).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from uwcosim.master.master import Master
+    from uwcosim.master.measurement import Measurement
+
+
+class StepView:
+    """A read-only view of a master at its current step (valid during ``on_step``)."""
+
+    __slots__ = ("_master", "bus", "native", "slots", "text")
+
+    def __init__(self, master: Master) -> None:
+        self._master = master
+        #: the signal bus (float64, one slot per signal), not writable
+        self.bus: np.ndarray = master.bus.view()
+        self.bus.flags.writeable = False
+        #: signal name -> bus slot
+        self.slots: Mapping[str, int] = MappingProxyType(master.slots)
+        #: exact native values of String/Int64/UInt64 outputs, by bus slot
+        self.native: Mapping[int, object] = MappingProxyType(master.native)
+        #: text of the String outputs, by bus slot
+        self.text: Mapping[int, str] = MappingProxyType(master.text)
+
+    @property
+    def k(self) -> int:
+        """The step index: the view shows the system at ``t0 + k*h``."""
+        return self._master.k
+
+    @property
+    def t(self) -> float:
+        """``t0 + k*h``."""
+        return self._master.t
+
+    @property
+    def h(self) -> float:
+        """The base step."""
+        return self._master.h
+
+    def signals(self, slots: np.ndarray) -> np.ndarray:
+        """A copy of the bus at ``slots``."""
+        return self.bus[slots]
+
+    def signal(self, name: str) -> float:
+        """The current value of the signal ``name`` as a float."""
+        return float(self.bus[self.slots[name]])
+
+    def value(self, name: str) -> str | int | bool | float:
+        """The current value of the signal ``name`` as its own type (str, int, bool, float)."""
+        return self._master.value(name)
+
+    def measurement(self) -> Measurement:
+        """The measurement of step ``k`` (the sensor bank's: NaN where not received)."""
+        return self._master.measurement()
+
+
+class Observer(Protocol):
+    """Anything with ``on_step(k, view)``: called at ``k = 0`` and after every step."""
+
+    def on_step(self, k: int, view: StepView) -> None: ...
+
+
+@dataclass(frozen=True)
+class Callback:
+    """An observer made of a function ``fn(k, view)``."""
+
+    fn: Callable[[int, StepView], object]
+
+    def on_step(self, k: int, view: StepView) -> None:
+        self.fn(k, view)

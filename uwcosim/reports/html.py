@@ -1,0 +1,130 @@
+"""The self-contained HTML report of one run (``report.html``), with Plotly.
+
+The scenario text, seed, package versions and FMU hashes from the log metadata, the reproduce
+command, the result table, interactive plots of truth against estimates and of the position
+errors with their 3-sigma bands, and the PNG figures; built from the run directory's files
+(:class:`~uwcosim.reports.runfiles.RunFiles`) with the blocks of :mod:`uwcosim.plots.html`.
+The table and the PNG figures use every step; the interactive plots are thinned.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from uwcosim.models.states import position_velocity_indices
+from uwcosim.plots.html import band, esc, num, page, plot, png, table, thin
+from uwcosim.reports.reproduce import reproduce_command
+from uwcosim.reports.runfiles import RunFiles
+from uwcosim.runlog import columns
+
+
+def _run_plots(run) -> list[str]:
+    import plotly.graph_objects as go
+    from plotly.subplots import make_subplots
+
+
+    cols, states, truth, names = run.cols, run.states, run.truth, run.estimators
+    idx = thin(cols["time"].size)
+    t = cols["time"][idx]
+    pos = position_velocity_indices(states)[0]
+    out = []
+    colors = [f"hsl({(40 + 360 * i / max(len(names), 1)) % 360:.0f},65%,45%)"
+              for i in range(len(names))]
+    if pos:
+        ix, iy = pos
+        fig = go.Figure()
+        fig.add_trace(go.Scatter(x=cols[truth[ix]][idx], y=cols[truth[iy]][idx], name="truth",
+                                 line={"color": "black", "width": 3}))
+        for n, c in zip(names, colors):
+            fig.add_trace(go.Scatter(x=cols[columns.estimate(n, states[ix])][idx],
+                                     y=cols[columns.estimate(n, states[iy])][idx], name=n,
+                                     line={"color": c, "width": 1.5}))
+        fig.update_layout(title="Trajectory: truth and estimates (zoom with the mouse)",
+                          xaxis_title="x (m)", yaxis_title="y (m)",
+                          yaxis={"scaleanchor": "x", "scaleratio": 1})
+        out.append(plot(fig, "plot-trajectory", 600))
+    fig = make_subplots(rows=len(states), cols=1, shared_xaxes=True, vertical_spacing=0.04,
+                        subplot_titles=[f"{s}: truth and estimates" for s in states])
+    for r, (s, tr) in enumerate(zip(states, truth), start=1):
+        fig.add_trace(go.Scatter(x=t, y=cols[tr][idx], name="truth", legendgroup="truth",
+                                 showlegend=r == 1, line={"color": "black", "width": 2.5}),
+                      row=r, col=1)
+        for n, c in zip(names, colors):
+            fig.add_trace(go.Scatter(x=t, y=cols[columns.estimate(n, s)][idx], name=n,
+                                     legendgroup=n, showlegend=r == 1,
+                                     line={"color": c, "width": 1.2}),
+                          row=r, col=1)
+    fig.update_xaxes(title_text="time (s)", row=len(states), col=1)
+    out.append(plot(fig, "plot-states", 260 * len(states) + 80))
+    if pos:
+        ix, iy = pos
+        fig = make_subplots(rows=len(names), cols=1, shared_xaxes=True, shared_yaxes=True,
+                            vertical_spacing=min(0.08, 0.3 / len(names)),
+                            subplot_titles=[f"{n}: position error with ±3σ" for n in names])
+        styles = (("x", ix, "rgba(31,119,180,0.18)", "#1f77b4", "solid"),
+                  ("y", iy, "rgba(255,127,14,0.18)", "#ff7f0e", "dash"))
+        for r, n in enumerate(names, start=1):
+            for axis, i, fill, color, dash in styles:
+                sig = 3 * np.sqrt(cols[columns.variance(n, states[i])][idx])
+                fig.add_trace(band(go, t, sig, f"±3σ {axis}", fill, f"band-{axis}", r == 1),
+                              row=r, col=1)
+                err = cols[columns.estimate(n, states[i])][idx] - cols[truth[i]][idx]
+                fig.add_trace(go.Scatter(x=t, y=err, name=f"error {axis}",
+                                         legendgroup=f"err-{axis}", showlegend=r == 1,
+                                         line={"color": color, "width": 1.2, "dash": dash}),
+                              row=r, col=1)
+            fig.update_yaxes(title_text="m", row=r, col=1)
+        fig.update_xaxes(title_text="time (s)", row=len(names), col=1)
+        out.append(plot(fig, "plot-errors", 230 * len(names) + 100))
+    return out
+
+
+def _results_rows(summary: dict) -> list[list]:
+    rows = []
+    for name, m in summary.get("estimators", {}).items():
+        rows.append([name, num(m.get("rmse_position_m"), ".2f"), num(m.get("rmse_x_m"), ".2f"),
+                     num(m.get("rmse_y_m"), ".2f"), num(m.get("rmse_velocity_mps"), ".4f"),
+                     num(m.get("anees"), ".2f"),
+                     num(1e3 * m["time_per_step_s"] if "time_per_step_s" in m else None, ".3f"),
+                     "yes" if m.get("diverged") else "no"])
+    return rows
+
+
+def run_html(run: RunFiles, figures: list[Path], path: Path) -> Path:
+    """Write the self-contained HTML report of ``run`` (a :class:`RunFiles`) to ``path``."""
+    s, meta = run.summary, run.meta
+    title = f"Run report: {s.get('scenario', meta.get('scenario_name', '?'))}"
+    body = [f"<h1>{esc(title)}</h1>",
+            f"<p>Seed <b>{esc(s.get('seed', meta.get('seed')))}</b>, {esc(s.get('steps'))} "
+            f"steps of {esc(s.get('step_s'))} s, status <b>{esc(s.get('status'))}</b>.</p>"]
+    if s.get("error"):
+        body.append(f"<p>Error: {esc(s['error'])}</p>")
+    for note in [*s.get("notes", []), *run.notes]:
+        body.append(f"<p>Note: {esc(note)}</p>")
+    body += ["<h2>Reproduce</h2>",
+             f"<pre>{esc(reproduce_command(s, meta, run.run_dir))}</pre>", "<h2>Results</h2>",
+             table(["estimator", "pos. RMSE (m)", "x RMSE (m)", "y RMSE (m)",
+                     "vel. RMSE (m/s)", "ANEES", "time/step (ms)", "diverged"],
+                    _results_rows(s))]
+    if run.has_estimates:
+        body += ["<h2>Interactive plots</h2>", *_run_plots(run)]
+    if figures:
+        body += ["<h2>Figures</h2>", *(png(p) for p in figures)]
+    body += ["<h2>Provenance</h2>",
+             table(["package", "version"], sorted(meta.get("versions", {}).items())),
+             table(["FMU", "sha256"], sorted(meta.get("fmus", {}).items())),
+             f"<p>Scenario sha256 (text and overrides): "
+             f"<code>{esc(meta.get('scenario_sha256', '?'))}</code></p>",
+             "<p>Overrides: " + (", ".join(f"<code>{esc(o)}</code>"
+                                           for o in meta.get("overrides", [])) or "none")
+             + "</p>",
+             f"<details open><summary>Scenario {esc(meta.get('scenario_path', ''))}</summary>"
+             f"<pre>{esc(meta.get('scenario_text', ''))}</pre></details>"]
+    if meta.get("variable_maps"):
+        body.append("<details><summary>Variable maps of third-party FMUs</summary><pre>"
+                    f"{esc(json.dumps(meta['variable_maps'], indent=2))}</pre></details>")
+    path.write_text(page(title, body), encoding="utf-8")
+    return path

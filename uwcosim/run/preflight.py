@@ -1,0 +1,125 @@
+"""``uwcosim check``: every problem of a scenario, without running it.
+
+Three levels, each a list of one-line :class:`~uwcosim.scenario.validate.Problem` s naming
+the file, the key and what was expected:
+
+1. the scenario's data (:func:`uwcosim.scenario.validate.validate_data`, also run at load
+   time): the schema, each ``[estimators.NAME]`` against its filter's settings, the
+   cross-references that need no FMU;
+2. :func:`check_fmus`: the scenario against the FMUs' model descriptions (variables,
+   causalities, types of connections, start values and parameters, algebraic loops; the
+   master's own checks, run in its collecting mode, :class:`uwcosim.master.master.Master`
+   ``check_only``), and ``model.truth`` outputs;
+3. :func:`check_filters`: the map is read, the filters' model built and every estimator
+   constructed at the initial state (what the constructors check: measurement names, grid
+   memory, ...).
+
+:func:`check_scenario` runs all three (exit 0 ok, 2 scenario problems, 3 FMU problems only);
+levels that depend on a refused one are skipped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from uwcosim.core.errors import UwcosimError
+from uwcosim.filters.settings import build
+from uwcosim.master.master import Master
+from uwcosim.run.factory import build_model, scenario_map
+from uwcosim.scenario.load import read_scenario
+from uwcosim.scenario.loaded import LoadedScenario
+from uwcosim.scenario.system import to_system
+from uwcosim.scenario.validate import (
+    Problem,
+    reference_problems,
+    validate_data,
+    validated_settings,
+)
+
+
+@dataclass
+class CheckReport:
+    """What ``uwcosim check`` found."""
+
+    path: Path
+    problems: list[Problem] = field(default_factory=list)
+    checked: list[str] = field(default_factory=list)
+
+    @property
+    def exit_code(self) -> int:
+        codes = {p.exit_code for p in self.problems}
+        return 0 if not codes else 2 if codes != {3} else 3
+
+
+def check_fmus(loaded: LoadedScenario) -> list[Problem]:
+    """The scenario against the FMUs' model descriptions (no FMU instantiated)."""
+    try:
+        master = Master(to_system(loaded), check_only=True)
+    except UwcosimError as exc:
+        return [Problem.of(exc)]
+    try:
+        problems = [Problem.of(e) for e in master.problems]
+        if not problems and loaded.spec.model is not None:
+            for s in loaded.spec.model.truth:
+                try:
+                    master.slot(s, "model.truth")
+                except UwcosimError as exc:
+                    problems.append(Problem.of(exc))
+        return problems
+    finally:
+        master.close()
+
+
+def check_filters(loaded: LoadedScenario) -> list[Problem]:
+    """Read the map, build the filters' model and construct every estimator at ``x = 0``."""
+    spec, where = loaded.spec, str(loaded.path)
+    try:
+        bathy = scenario_map(loaded)
+        if not spec.estimators:
+            return []
+        model = build_model(loaded, bathy)
+    except UwcosimError as exc:
+        return [Problem.of(exc)]
+    out = []
+    for name, es in spec.estimators.items():
+        std = es.initial_std or (spec.estimation.initial_std if spec.estimation else None)
+        P0 = np.diag(np.asarray(std if std else np.ones(model.nx), float) ** 2)
+        try:
+            if P0.shape != (model.nx, model.nx):
+                raise ValueError(f"initial_std has {len(std)} values for {model.nx} states")
+            build(es.type, model, np.zeros(model.nx), P0, validated_settings(es),
+                  rng=np.random.default_rng(0))
+        except (UwcosimError, ValueError, TypeError, MemoryError) as exc:
+            out.append(Problem(f"{where}: key 'estimators.{name}': {exc}"))
+    return out
+
+
+def check_scenario(path: str | Path, overrides: Sequence[str] = (),
+                   overrides_base: str | Path | None = None) -> CheckReport:
+    """Every problem of a scenario: schema, references, FMUs, map and filters (nothing runs)."""
+    report = CheckReport(Path(path))
+    try:
+        data, loaded = read_scenario(path, overrides, overrides_base)
+    except UwcosimError as exc:
+        report.problems.append(Problem.of(exc))
+        return report
+    if loaded.spec is not None:  # an .ssp alone: validated by its reader
+        spec, report.problems = loaded.spec, reference_problems(loaded.spec, str(path))
+    else:
+        spec, report.problems = validate_data(data, str(Path(path)))
+    report.checked.append("schema")
+    if spec is None:
+        return report
+    loaded = replace(loaded, spec=spec)
+    fmu = check_fmus(loaded)
+    report.problems += fmu
+    report.checked.append("FMUs")
+    if not report.problems:
+        report.problems += check_filters(loaded)
+        report.checked.append("map and filters")
+    report.problems = list(dict.fromkeys(report.problems))  # the master repeats run.duration
+    return report

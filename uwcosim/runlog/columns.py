@@ -1,0 +1,143 @@
+"""The log's column schema: every column name is built and parsed here, nowhere else.
+
+A run's log has one row per communication step, ``time`` first, then
+
+- the logged signals, by their bus names (``vehicle.x``, ``controls.psi``);
+- with estimators: the measurements ``z.NAME`` (NaN when not received), then per estimator
+  ``E`` one *block*: its mean ``est.E.STATE`` for every state, its variance
+  ``est.E.var.STATE`` for every state, ``est.E.nis`` and ``est.E.nees``;
+- the Boolean flags, after the float columns: ``z.NAME.received`` per measurement, then
+  ``est.E.diverged`` per estimator.
+
+:class:`LogLayout` is that layout for one run (names, positions in a row, the block of each
+estimator); :class:`EstimateBlock` the positions inside one estimator's block, which the
+estimator bank fills and the recorder copies. The functions build single names and read them
+back from an existing log (:func:`estimators_in`, :func:`states_in`), for the evaluation, the
+figures, the HTML report and the exports.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
+
+TIME = "time"
+_EST = "est."
+_Z = "z."
+
+
+def measurement(name: str) -> str:
+    """``z.NAME``: a measurement component as received (NaN when not)."""
+    return f"{_Z}{name}"
+
+
+def received(name: str) -> str:
+    """``z.NAME.received``: the flag of a measurement component."""
+    return f"{_Z}{name}.received"
+
+
+def estimate(estimator: str, state: str) -> str:
+    """``est.E.STATE``: estimator ``E``'s mean of ``state``."""
+    return f"{_EST}{estimator}.{state}"
+
+
+def variance(estimator: str, state: str) -> str:
+    """``est.E.var.STATE``: estimator ``E``'s variance of ``state``."""
+    return f"{_EST}{estimator}.var.{state}"
+
+
+def nis(estimator: str) -> str:
+    """``est.E.nis``: the normalized innovation squared of the step's update."""
+    return f"{_EST}{estimator}.nis"
+
+
+def nees(estimator: str) -> str:
+    """``est.E.nees``: the normalized estimation error squared against the truth."""
+    return f"{_EST}{estimator}.nees"
+
+
+def diverged(estimator: str) -> str:
+    """``est.E.diverged``: the flag of an estimator stopped for divergence."""
+    return f"{_EST}{estimator}.diverged"
+
+
+class EstimateBlock(NamedTuple):
+    """Positions inside one estimator's block of a row: ``[mean | variance | nis, nees]``."""
+
+    mean: slice
+    var: slice
+    nis: int
+    nees: int
+    width: int
+
+    @classmethod
+    def of(cls, nx: int) -> EstimateBlock:
+        return cls(slice(0, nx), slice(nx, 2 * nx), 2 * nx, 2 * nx + 1, 2 * nx + 2)
+
+
+def estimator_columns(estimator: str, states: Sequence[str]) -> list[str]:
+    """The float columns of one estimator's block, in :class:`EstimateBlock` order."""
+    return ([estimate(estimator, s) for s in states] + [variance(estimator, s) for s in states]
+            + [nis(estimator), nees(estimator)])
+
+
+@dataclass(frozen=True)
+class LogLayout:
+    """The columns of one run's log and where each part sits in a row (``time`` at 0)."""
+
+    signals: tuple[str, ...]
+    measurements: tuple[str, ...] = ()
+    estimators: tuple[str, ...] = ()
+    states: tuple[str, ...] = ()
+
+    @property
+    def block(self) -> EstimateBlock:
+        return EstimateBlock.of(len(self.states))
+
+    @property
+    def columns(self) -> list[str]:
+        """The float columns after ``time``."""
+        out = list(self.signals) + [measurement(n) for n in self.measurements]
+        for e in self.estimators:
+            out += estimator_columns(e, self.states)
+        return out
+
+    @property
+    def flags(self) -> list[str]:
+        """The Boolean columns, after the float ones."""
+        return [received(n) for n in self.measurements] + [diverged(e) for e in self.estimators]
+
+    @property
+    def width(self) -> int:
+        """Floats per row, ``time`` included."""
+        return 1 + len(self.signals) + len(self.measurements) + self.estimates.stop \
+            - self.estimates.start
+
+    @property
+    def signal_part(self) -> slice:
+        return slice(1, 1 + len(self.signals))
+
+    @property
+    def measurement_part(self) -> slice:
+        start = 1 + len(self.signals)
+        return slice(start, start + len(self.measurements))
+
+    @property
+    def estimates(self) -> slice:
+        """Every estimator's block, one after the other."""
+        start = self.measurement_part.stop
+        return slice(start, start + len(self.estimators) * self.block.width)
+
+
+def estimators_in(columns: Iterable[str]) -> list[str]:
+    """The estimator names of an existing log, in column order (from ``est.E.nis``)."""
+    suffix = ".nis"
+    return [c[len(_EST):-len(suffix)] for c in columns
+            if c.startswith(_EST) and c.endswith(suffix)]
+
+
+def states_in(columns: Iterable[str], estimator: str) -> list[str]:
+    """The state names of ``estimator``'s block in an existing log (from ``est.E.var.S``)."""
+    prefix = variance(estimator, "")
+    return [c[len(prefix):] for c in columns if c.startswith(prefix)]

@@ -10,11 +10,12 @@ import tomllib
 from pathlib import Path
 from typing import get_args
 
+import numpy as np
 import pytest
 
 from uwcosim.core.errors import ScenarioError
 from uwcosim.filters import ESTIMATORS
-from uwcosim.filters.settings import settings_model
+from uwcosim.filters.base import settings_model
 from uwcosim.run.preflight import check_scenario
 from uwcosim.scenario import load_scenario
 
@@ -150,21 +151,41 @@ def test_wrong_setting_types_name_the_key(override, expected):
     assert len(str(info.value).splitlines()) == 1
 
 
-def test_every_project_filter_declares_its_settings_as_its_constructor_takes_them():
-    """Field names are the constructor's keyword arguments (but ``rng``/``seed``, the master's)
-    and the declared defaults are the constructor's."""
+def test_every_project_filter_declares_its_settings_once_on_its_class():
+    """The constructor takes exactly the declared settings (but ``rng``/``seed``, the
+    master's) with the declared defaults: built with none, a filter holds
+    ``Settings()``; an unknown keyword is refused naming the valid ones; only the filters that
+    draw take the random stream."""
+    from uwcosim.filters import Estimator
+    from uwcosim.filters.settings import FilterSettings
+    from uwcosim.models.linear import constant_velocity_model
+    from uwcosim.models.tan import tan_model
+    from uwcosim.models.terrain import synthetic_bathymetry
+
+    tan = tan_model([0.01] * 4, [0.05, 0.05], 1.0,
+                    synthetic_bathymetry(1, (0.0, 5000.0, 0.0, 5000.0), 50.0),
+                    ("dvl.vx_m", "dvl.vy_m", "sounder.depth_m"))
+    cv = constant_velocity_model(q_psd=[0.01], R=np.eye(2), measurement_names=("px", "py"))
+    drawing = {"pf", "rbpf", "rpf"}
     for kind in ESTIMATORS.names():
         cls = ESTIMATORS.get(kind)
         if not cls.__module__.startswith("uwcosim.filters"):
             continue  # a filter registered by a test or a user
-        model = ESTIMATORS.settings(kind)
-        assert model is not None, f"{kind}: declare its settings in uwcosim/filters/settings.py"
-        params = {n: p.default for n, p in inspect.signature(cls.__init__).parameters.items()
-                  if n not in ("self", "model", "x0", "P0", "rng", "seed")}
-        fields = {n: f.default for n, f in model.model_fields.items()}
-        assert fields == params, kind
-        takes_rng = "rng" in inspect.signature(cls.__init__).parameters
-        assert model.needs_rng == takes_rng, kind
+        assert issubclass(cls.Settings, FilterSettings), kind
+        assert "Settings" in vars(cls) or any("Settings" in vars(b) for b in cls.__mro__[1:-1]
+                                              if b is not Estimator), kind
+        params = {n for n in inspect.signature(cls.__init__).parameters
+                  if n not in ("self", "model", "x0", "P0")}
+        assert params <= {"settings", "kw", "rng", "seed"}, (kind, params)  # no second list
+        model = cv if kind == "kf" else tan
+        x0 = np.array([1000.0, 0.0, 1000.0, 0.0]) if kind == "kf" else \
+            np.array([2500.0, 2500.0, 1.0, 0.0])
+        est = cls(model, x0, np.eye(4) * 25.0)
+        assert est.settings == cls.Settings(), kind
+        with pytest.raises(TypeError, match=f"unknown setting 'nope' for estimator '{kind}' "
+                                            r"\(valid: "):
+            cls(model, x0, np.eye(4) * 25.0, nope=1)
+        assert cls.needs_rng == (kind in drawing), kind
 
 
 def test_choices_match_the_registries():

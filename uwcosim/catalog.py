@@ -17,6 +17,12 @@ from typing import Annotated, Literal, Union, get_args, get_origin
 
 from pydantic_core import PydanticUndefined
 
+from uwcosim.core.paths import cache_dir, project_root, scenarios_dir
+from uwcosim.filters import ESTIMATORS
+from uwcosim.filters.base import settings_model
+from uwcosim.fmu.build import FMI_VERSIONS, archive_name
+from uwcosim.fmu.specs import MODELS
+
 
 def _first_line(doc: str | None) -> str:
     return (doc or "").strip().splitlines()[0].rstrip(".") if doc and doc.strip() else ""
@@ -38,8 +44,6 @@ def _type_name(t) -> str:
 
 def estimator_settings(kind: str) -> list[tuple[str, str, object, str]]:
     """``[(setting, type, default, description)]`` of the registered filter ``kind``."""
-    from uwcosim.filters.settings import settings_model
-
     model = settings_model(kind)
     return [(n, _type_name(f.annotation),
              "required" if f.default is PydanticUndefined else f.default, f.description or "")
@@ -47,8 +51,6 @@ def estimator_settings(kind: str) -> list[tuple[str, str, object, str]]:
 
 
 def list_estimators() -> str:
-    from uwcosim.filters import ESTIMATORS
-
     lines = []
     for name in ESTIMATORS.names():
         cls = ESTIMATORS.get(name)
@@ -63,7 +65,6 @@ def list_estimators() -> str:
 
 
 def list_scenarios(directory: Path | None = None) -> str:
-    from uwcosim.core.paths import scenarios_dir
 
     directory = Path(directory) if directory is not None else scenarios_dir()
     lines = []
@@ -79,9 +80,6 @@ def list_scenarios(directory: Path | None = None) -> str:
 
 
 def list_fmus() -> str:
-    from uwcosim.core.paths import cache_dir, project_root
-    from uwcosim.fmu.build import FMI_VERSIONS, archive_name
-    from uwcosim.fmu.specs import MODELS
 
     places = [d for d in ((project_root() or Path("/nonexistent")) / "fmus",
                           cache_dir() / "fmus") if d.is_dir()]

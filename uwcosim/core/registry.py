@@ -1,8 +1,7 @@
 """Name -> factory registries that list the valid names on a typo.
 
-A registry may also hold a *settings model* per name (a pydantic model of the keyword settings
-its factory takes, :mod:`uwcosim.filters.settings`), used by the scenario validation, ``uwcosim
-list`` and ``uwcosim schema``.
+What a registered factory takes (a filter's settings, for instance) is declared on the
+factory itself (:mod:`uwcosim.filters.settings`), not here.
 """
 
 from __future__ import annotations
@@ -21,7 +20,6 @@ class Registry(Generic[T]):
     def __init__(self, kind: str) -> None:
         self.kind = kind
         self._items: dict[str, T] = {}
-        self._settings: dict[str, type] = {}
 
     def register(self, name: str) -> Callable[[T], T]:
         def deco(obj: T) -> T:
@@ -44,16 +42,6 @@ class Registry(Generic[T]):
             raise ScenarioError(
                 f"{prefix}unknown {self.kind} {name!r} (valid: {valid})"
             ) from None
-
-    def declare_settings(self, name: str, model: type) -> None:
-        """Declare ``model`` (a pydantic model) as the settings of ``name``."""
-        if name in self._settings:
-            raise ValueError(f"settings of {self.kind} {name!r} declared twice")
-        self._settings[name] = model
-
-    def settings(self, name: str) -> type | None:
-        """The settings model declared for ``name`` (None: none declared)."""
-        return self._settings.get(name)
 
     def names(self) -> list[str]:
         return sorted(self._items)

@@ -1,7 +1,12 @@
-"""Estimators: one module per family, registered by name in :data:`ESTIMATORS`.
+"""The estimation library: Bayesian filters behind one interface, registered by name.
 
-The grid filters (point mass, projection) and what only they use are in
-:mod:`uwcosim.filters.grid`.
+One module per family (``kalman``, ``sigma_point``, ``particle``, ``rbpf``, ``regularized``,
+``variational``), the grid filters (point mass, projection) in :mod:`uwcosim.filters.grid`;
+the interface and the registry :data:`ESTIMATORS` in ``base``, how a filter declares its
+settings in ``settings``, the lost-measurement policies in ``policies`` and the covariance
+numerics in ``numerics``. The filters see their model only through
+:class:`uwcosim.models.protocol.StateSpaceModel`. Importing the package registers every
+built-in filter.
 """
 
 from uwcosim.filters import (  # noqa: F401  (importing registers the estimators)
@@ -9,11 +14,12 @@ from uwcosim.filters import (  # noqa: F401  (importing registers the estimators
     particle,
     rbpf,
     regularized,
-    settings,
     sigma_point,
     variational,
 )
-from uwcosim.filters.base import ESTIMATORS, Estimator, StateSpaceModel, register
+from uwcosim.filters.base import ESTIMATORS, Estimator, StateSpaceModel, build, register
 from uwcosim.filters.grid import point_mass, projection  # noqa: F401
+from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
 
-__all__ = ["ESTIMATORS", "Estimator", "StateSpaceModel", "register"]
+__all__ = ["ESTIMATORS", "Estimator", "FilterSettings", "Measurements", "StateSpaceModel",
+           "build", "measurements_field", "register"]

@@ -10,8 +10,11 @@ code, numpy in and numpy out)::
     est.t                     # time of the current estimate; the driver sets it (the master
                               # sets est.t = t0 + k*h before each update; it is never summed)
 
-Settings come from scenarios by name through :data:`ESTIMATORS`; each filter's settings are
-declared in :mod:`uwcosim.filters.settings` (:meth:`Estimator.from_settings` checks them).
+A filter declares its settings once, on its class (``Settings``, a
+:class:`~uwcosim.filters.settings.FilterSettings`); the constructor takes them as keywords,
+validates them and keeps them as ``self.settings``. Scenarios name filters through
+:data:`ESTIMATORS` (:func:`register`); :func:`build` makes one from validated settings and
+:meth:`Estimator.from_settings` from raw ones, with one-line errors.
 
 :class:`FilterBase` holds what every filter of the package shares: the ``measurements`` setting
 (the subset of measurement names a filter uses), per-step diagnostics (reset when a step begins,
@@ -19,20 +22,22 @@ i.e. at ``predict``, or at ``update`` when no ``predict`` came before it; ``pd_r
 ``nis``/``nis_dof`` after an update with data, plus each filter's own) and finiteness checks that
 raise :class:`~uwcosim.core.errors.FilterDivergence`. A filter uses the model it is given: which
 implementation that is (CasADi, or the closed-form TAN model) is chosen where the model is built
-(:mod:`uwcosim.run.factory`); no filter imports :mod:`uwcosim.models`.
+(:mod:`uwcosim.run.factory`); the filters see it only through
+:class:`~uwcosim.models.protocol.StateSpaceModel`.
 """
 
 from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from uwcosim.core.errors import ScenarioError
 from uwcosim.core.registry import Registry
 from uwcosim.filters.numerics import check_finite
+from uwcosim.filters.settings import FilterSettings, settings_problems
 from uwcosim.models.protocol import StateSpaceModel
 
 
@@ -40,9 +45,25 @@ class Estimator(ABC):
     """Base class: mean ``x``, covariance ``P``, ``predict``/``update`` and diagnostics."""
 
     #: registry name, set by :func:`register`
-    kind: str = ""
+    kind: ClassVar[str] = ""
+    #: the filter's settings, the keywords of its constructor (none: the base model)
+    Settings: ClassVar[type[FilterSettings]] = FilterSettings
+    #: the filter draws random numbers: it takes the master's stream as ``rng``
+    needs_rng: ClassVar[bool] = False
 
-    def __init__(self, model: StateSpaceModel, x0: np.ndarray, P0: np.ndarray) -> None:
+    def __init__(self, model: StateSpaceModel, x0: np.ndarray, P0: np.ndarray, *,
+                 rng: np.random.Generator | None = None, seed: int | None = None,
+                 **settings: Any) -> None:
+        """``settings``: the keywords of :attr:`Settings`. A filter that draws
+        (:attr:`needs_rng`) takes its random numbers from ``rng`` (the master passes its stream
+        ``estimator:NAME``), or from ``numpy.random.default_rng(seed)`` when ``seed`` is
+        given (it wins over ``rng``); with neither, from ``default_rng(0)``: a filter made in
+        code without one is still reproducible."""
+        #: the validated settings (an instance of :attr:`Settings`)
+        self.settings = self.validate_settings(settings)
+        if seed is not None:
+            rng = np.random.default_rng(seed)
+        self.rng = rng if rng is not None else np.random.default_rng(0)
         self.model = model
         self.x = np.array(x0, dtype=float).reshape(-1)
         self.P = np.array(P0, dtype=float)
@@ -65,19 +86,27 @@ class Estimator(ABC):
         """Measurement update; ``z=None`` or an all-False ``mask`` means no measurement."""
 
     @classmethod
+    def validate_settings(cls, settings: dict[str, Any]) -> FilterSettings:
+        """``settings`` checked against :attr:`Settings`: an instance, or a one-line
+        TypeError (unknown key) or ValueError (a wrong value) naming every problem."""
+        problems = settings_problems(cls.Settings, cls.kind or cls.__name__, settings)
+        if problems:
+            unknown = any(p.startswith("unknown setting") for p in problems)
+            raise (TypeError if unknown else ValueError)("; ".join(problems))
+        return cls.Settings.model_validate(settings)
+
+    @classmethod
     def from_settings(
         cls, model: StateSpaceModel, x0, P0, settings: dict[str, Any], where: str = "",
         rng: np.random.Generator | None = None,
     ) -> Estimator:
-        """Build from scenario settings, checked against the filter's settings model
-        (:mod:`uwcosim.filters.settings`); every problem in one line."""
-        from uwcosim.filters.settings import build, settings_problems
-
-        problems = settings_problems(cls.kind, settings)
+        """Build from scenario settings, checked against the filter's :attr:`Settings`; every
+        problem in one line."""
+        problems = settings_problems(cls.Settings, cls.kind, settings)
         if problems:
             raise ScenarioError(f"{where}: {'; '.join(problems)}")
         try:
-            return build(cls.kind, model, x0, P0, settings, rng=rng)
+            return cls(model, x0, P0, rng=rng, **settings)
         except (TypeError, ValueError) as exc:
             raise ScenarioError(f"{where}: {exc}") from None
         except MemoryError:
@@ -96,6 +125,20 @@ def register(name: str):
         return cls
 
     return deco
+
+
+def settings_model(kind: str) -> type[FilterSettings]:
+    """The settings model of the registered filter ``kind``."""
+    return ESTIMATORS.get(kind).Settings
+
+
+def build(kind: str, model: StateSpaceModel, x0: np.ndarray, P0: np.ndarray,
+          settings: dict[str, Any], rng: np.random.Generator | None = None) -> Estimator:
+    """Construct filter ``kind`` from settings already validated against its ``Settings``
+    (only the keys the scenario gives: the others take their declared defaults); ``rng``
+    goes to a filter that draws."""
+    cls = ESTIMATORS.get(kind)
+    return cls(model, x0, P0, rng=rng if cls.needs_rng else None, **settings)
 
 
 def select(z: np.ndarray | None, mask: np.ndarray | None, nz: int) -> np.ndarray | None:
@@ -123,14 +166,21 @@ def measurement_use(model, measurements: list[str] | None) -> np.ndarray:
 class FilterBase(Estimator):
     """Shared plumbing: measurement subset, step diagnostics, divergence checks."""
 
-    def __init__(self, model, x0, P0, measurements: list[str] | None = None) -> None:
-        super().__init__(model, x0, P0)
-        self._use = measurement_use(model, measurements)
+    def __init__(self, model: StateSpaceModel, x0: np.ndarray, P0: np.ndarray, *,
+                 rng: np.random.Generator | None = None, seed: int | None = None,
+                 **settings: Any) -> None:
+        super().__init__(model, x0, P0, rng=rng, seed=seed, **settings)
+        self._use = measurement_use(model, self.measurements_used())
         self._predicted = False
         self._R_blocks: dict[bytes, np.ndarray] = {}
         self._all_idx = np.arange(model.nz)
         self._all_idx.flags.writeable = False
         check_finite("initial state or covariance", self.x, self.P)
+
+    def measurements_used(self) -> list[str] | None:
+        """The names of the measurement components this filter uses (None: all): its
+        ``measurements`` setting, if it has one."""
+        return getattr(self.settings, "measurements", None)
 
     def _begin_predict(self) -> None:
         self.diagnostics = {"pd_repairs": 0.0}

@@ -24,17 +24,18 @@ from uwcosim.filters.numerics import (
     linearize,
     symmetrize_,
 )
+from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
 
 
 @register("ekf")
 class ExtendedKalmanFilter(FilterBase):
-    """EKF: ``x = f(x, u)``, ``P = F P F' + Q``; update with ``H = dh/dx`` at the prior mean.
+    """EKF: ``x = f(x, u)``, ``P = F P F' + Q``; update with ``H = dh/dx`` at the prior mean."""
 
-    ``measurements``: optional list of measurement names the filter uses (default: all).
-    """
+    class Settings(FilterSettings):
+        measurements: Measurements = measurements_field()
 
-    def __init__(self, model, x0, P0, measurements: list[str] | None = None) -> None:
-        super().__init__(model, x0, P0, measurements)
+    def __init__(self, model, x0, P0, **settings) -> None:
+        super().__init__(model, x0, P0, **settings)
         self._eye = np.eye(model.nx)
 
     def predict(self, u, dt: float) -> None:
@@ -76,12 +77,12 @@ class KalmanFilter(ExtendedKalmanFilter):
     separate name refuses nonlinear models instead of silently linearizing them.
     """
 
-    def __init__(self, model, x0, P0, measurements: list[str] | None = None) -> None:
+    def __init__(self, model, x0, P0, **settings) -> None:
         if not getattr(model, "linear", False):
             raise ValueError(
                 "estimator 'kf' needs a linear model (model.linear); use 'ekf', 'ukf' or 'ckf'"
             )
-        super().__init__(model, x0, P0, measurements)
+        super().__init__(model, x0, P0, **settings)
 
 
 @register("dead_reckoning")
@@ -92,7 +93,13 @@ class DeadReckoning(ExtendedKalmanFilter):
     (names ending in ``vx_m``/``vy_m``), so its covariance shows the unbounded position drift.
     """
 
-    def __init__(self, model, x0, P0, measurements: list[str] | None = None) -> None:
-        if measurements is None:
-            measurements = [n for n in model.measurement_names if n.endswith(("vx_m", "vy_m"))]
-        super().__init__(model, x0, P0, measurements=measurements)
+    class Settings(FilterSettings):
+        measurements: Measurements = measurements_field(
+            "measurement components to integrate (default: the velocities)")
+
+    def measurements_used(self) -> list[str]:
+        """The ``measurements`` setting, by default the velocity components."""
+        names = self.settings.measurements
+        if names is None:
+            names = [n for n in self.model.measurement_names if n.endswith(("vx_m", "vy_m"))]
+        return names

@@ -41,14 +41,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Literal
 
 import numpy as np
+from pydantic import Field, StrictFloat, StrictInt
 from scipy.linalg import solve_triangular
 
-from uwcosim.core.errors import FilterDivergence, ScenarioError
+from uwcosim.core.errors import FilterDivergence
 from uwcosim.core.registry import Registry
 from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.numerics import cholesky, psd_factor, repair_pd
+from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
 
 Resampler = Callable[[np.ndarray, np.random.Generator], np.ndarray]
 RESAMPLERS: Registry[Resampler] = Registry("resampling scheme")
@@ -157,6 +160,10 @@ def quad_form(L: np.ndarray, y: np.ndarray) -> float:
     return acc
 
 
+#: the resampling schemes by name, as a setting (the same names as :data:`RESAMPLERS`)
+Resampling = Literal["systematic", "stratified", "residual", "multinomial"]
+
+
 class ParticleCloud(FilterBase):
     """Weighted particles, state-major (row ``j`` holds state ``j`` of every particle), with
     normalized log weights and the estimate computed when read (once per step): what the
@@ -164,21 +171,22 @@ class ParticleCloud(FilterBase):
     draw ``self.particles`` and add to :meth:`_conditional_cov` what the particles do not
     carry (the RBPF's Kalman covariance)."""
 
-    def _init_cloud(self, n_particles: int, resampling: str, ess_threshold: float,
-                    seed: int | None, rng: np.random.Generator | None) -> None:
-        if int(n_particles) < 2:
-            raise ValueError(f"n_particles must be at least 2, got {n_particles}")
-        if not 0.0 <= float(ess_threshold) <= 1.0:
-            raise ValueError(f"ess_threshold must be in [0, 1], got {ess_threshold}")
-        try:
-            self.resample = RESAMPLERS.get(resampling)
-        except ScenarioError as exc:  # from_settings prefixes the scenario location
-            raise ValueError(str(exc)) from None
-        self.n = n = int(n_particles)
-        self.ess_threshold = float(ess_threshold)
-        if seed is not None:
-            rng = np.random.default_rng(seed)
-        self.rng = rng if rng is not None else np.random.default_rng()
+    class Settings(FilterSettings):
+        """What the particle filters (``pf``, ``rbpf``, ``rpf``) share."""
+
+        n_particles: StrictInt = Field(1000, ge=2, description="number of particles")
+        resampling: Resampling = Field("systematic", description="resampling scheme")
+        ess_threshold: StrictFloat = Field(0.5, ge=0, le=1, description="resample when the "
+                                           "effective sample size falls below this fraction "
+                                           "of N")
+
+    needs_rng = True
+
+    def _init_cloud(self) -> None:
+        s = self.settings
+        self.resample = RESAMPLERS.get(s.resampling)
+        self.n = n = s.n_particles
+        self.ess_threshold = s.ess_threshold
         self.logw = np.full(n, -math.log(n))  # normalized log weights, updated in place
         self._w = np.full(n, 1.0 / n)
         self._normals: np.ndarray | None = None  # block of standard normals, (steps, nw, N)
@@ -292,35 +300,24 @@ class ParticleCloud(FilterBase):
 class ParticleFilter(ParticleCloud):
     """Bootstrap particle filter.
 
-    Settings: ``n_particles`` (1000), ``resampling`` (``systematic``, ``stratified``,
-    ``residual`` or ``multinomial``), ``ess_threshold`` (fraction of ``N`` below which to
-    resample, 0.5; 1 resamples every step, 0 never), ``roughening`` (Gordon et al.'s ``K``:
+    ``ess_threshold`` 1 resamples every step, 0 never; ``roughening`` is Gordon et al.'s ``K``:
     after resampling add ``N(0, (K E_j N^(-1/nx))^2)`` to state ``j``, ``E_j`` the particles'
-    range; 0 = off), ``seed``, ``rng``, ``measurements``.
-
-    ``x`` and ``P`` are the weighted mean and covariance, computed when read (once per step).
+    range. ``x`` and ``P`` are the weighted mean and covariance, computed when read (once per
+    step).
     """
 
-    def __init__(
-        self,
-        model,
-        x0,
-        P0,
-        n_particles: int = 1000,
-        resampling: str = "systematic",
-        ess_threshold: float = 0.5,
-        roughening: float = 0.0,
-        seed: int | None = None,
-        rng: np.random.Generator | None = None,
-        measurements: list[str] | None = None,
-    ) -> None:
-        super().__init__(model, x0, P0, measurements)
-        if float(roughening) < 0.0:
-            raise ValueError(f"roughening must be >= 0, got {roughening}")
+    class Settings(ParticleCloud.Settings):
+        roughening: StrictFloat = Field(0.0, ge=0, description="Gordon et al.'s K: jitter "
+                                        "after resampling (0 = off)")
+        measurements: Measurements = measurements_field()
+
+    def __init__(self, model, x0, P0, **kw) -> None:
+        super().__init__(model, x0, P0, **kw)
         L = psd_factor(self.P)  # P0 may be singular (a state known exactly); read before
         x = self.x  # the cloud makes x and P lazy
-        self._init_cloud(n_particles, resampling, ess_threshold, seed, rng)
-        self.roughening = float(roughening)
+        self._init_cloud()
+        # the regularized PF (rpf) has no roughening: it draws from a kernel instead
+        self.roughening = getattr(self.settings, "roughening", 0.0)
         # particles, state-major: row j holds state j of every particle
         self.particles = x[:, None] + L @ self.rng.standard_normal((model.nx, self.n))
         self._D = np.empty_like(self.particles)  # centred particles, for P

@@ -51,6 +51,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from pydantic import Field, StrictStr
 from scipy.linalg import lapack
 
 from uwcosim.core.errors import FilterDivergence
@@ -63,6 +64,7 @@ from uwcosim.filters.numerics import (
     symmetrize,
 )
 from uwcosim.filters.particle import ParticleCloud
+from uwcosim.filters.settings import Measurements, measurements_field
 
 _trtri = lapack.dtrtri
 _potrf = lapack.dpotrf
@@ -122,26 +124,18 @@ class RaoBlackwellizedPF(ParticleCloud):
     """Marginalized particle filter: particles on the nonlinear states, one Kalman filter per
     particle (common covariance) on the linear-Gaussian ones.
 
-    Settings: ``n_particles`` (1000), ``resampling`` (as ``pf``: ``systematic``, ...),
-    ``ess_threshold`` (0.5), ``linear_states`` (names; default: found from the model),
-    ``seed``, ``rng``, ``measurements``.
+    The linear states are found from the model unless ``linear_states`` names them.
     """
 
-    def __init__(
-        self,
-        model,
-        x0,
-        P0,
-        n_particles: int = 1000,
-        resampling: str = "systematic",
-        ess_threshold: float = 0.5,
-        linear_states: list[str] | None = None,
-        seed: int | None = None,
-        rng: np.random.Generator | None = None,
-        measurements: list[str] | None = None,
-    ) -> None:
-        super().__init__(model, x0, P0, measurements)
-        self._init_cloud(n_particles, resampling, ess_threshold, seed, rng)
+    class Settings(ParticleCloud.Settings):
+        linear_states: list[StrictStr] | None = Field(
+            None, description="the Kalman (marginalized) states (default: from the model)")
+        measurements: Measurements = measurements_field()
+
+    def __init__(self, model, x0, P0, **kw) -> None:
+        super().__init__(model, x0, P0, **kw)
+        linear_states = self.settings.linear_states
+        self._init_cloud()
         self._x_stale = self._P_stale = False  # x0 and P0 until the particles are drawn
         m = self.model
         n = self.n

@@ -27,10 +27,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from pydantic import Field, StrictBool, StrictFloat
 
 from uwcosim.filters.base import register
 from uwcosim.filters.numerics import psd_factor
-from uwcosim.filters.particle import ParticleFilter
+from uwcosim.filters.particle import ParticleCloud, ParticleFilter
+from uwcosim.filters.settings import Measurements, measurements_field
 
 
 def optimal_bandwidth(n_particles: int, dim: int) -> float:
@@ -43,33 +45,23 @@ def optimal_bandwidth(n_particles: int, dim: int) -> float:
 class RegularizedPF(ParticleFilter):
     """Post-regularized particle filter (Gaussian kernel, optimal bandwidth).
 
-    Settings: ``n_particles`` (1000), ``resampling`` (``systematic``, ...), ``ess_threshold``
-    (0.5), ``bandwidth_scale`` (1: the optimal bandwidth ``h_opt``), ``shrink`` (false: plain
-    jitter; true: Liu-West shrinkage), ``seed``, ``rng``,
-    ``measurements``. ``diagnostics['bandwidth']`` is ``h`` at a resampling step.
+    ``bandwidth_scale = 1`` is the optimal bandwidth ``h_opt``; ``shrink`` false is plain
+    jitter, true Liu-West shrinkage. ``diagnostics['bandwidth']`` is ``h`` at a resampling
+    step.
     """
 
-    def __init__(
-        self,
-        model,
-        x0,
-        P0,
-        n_particles: int = 1000,
-        resampling: str = "systematic",
-        ess_threshold: float = 0.5,
-        bandwidth_scale: float = 1.0,
-        shrink: bool = False,
-        seed: int | None = None,
-        rng: np.random.Generator | None = None,
-        measurements: list[str] | None = None,
-    ) -> None:
-        super().__init__(model, x0, P0, n_particles=n_particles, resampling=resampling,
-                         ess_threshold=ess_threshold, roughening=0.0, seed=seed, rng=rng,
-                         measurements=measurements)
-        if not float(bandwidth_scale) >= 0.0:
-            raise ValueError(f"bandwidth_scale must be >= 0, got {bandwidth_scale}")
-        self.bandwidth = float(bandwidth_scale) * optimal_bandwidth(self.n, self.model.nx)
-        self.shrink = bool(shrink)
+    class Settings(ParticleCloud.Settings):
+        bandwidth_scale: StrictFloat = Field(1.0, ge=0, description="times the optimal "
+                                             "Gaussian kernel bandwidth")
+        shrink: StrictBool = Field(False, description="Liu-West shrinkage (keeps the cloud's "
+                                   "mean and covariance)")
+        measurements: Measurements = measurements_field()
+
+    def __init__(self, model, x0, P0, **kw) -> None:
+        super().__init__(model, x0, P0, **kw)
+        self.bandwidth = self.settings.bandwidth_scale * optimal_bandwidth(self.n,
+                                                                           self.model.nx)
+        self.shrink = self.settings.shrink
         if self.shrink and not self.bandwidth < 1.0:
             raise ValueError(f"shrink needs a bandwidth below 1, got {self.bandwidth:.3g}")
         self._plain_resample = self.resample

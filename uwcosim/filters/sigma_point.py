@@ -28,9 +28,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from pydantic import Field, StrictBool, StrictFloat
 
 from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.numerics import factor, gain_and_nis, symmetrize_
+from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
 
 
 @dataclass(frozen=True)
@@ -103,11 +105,19 @@ def cukf_unscented_rule(n: int, a: float) -> SigmaRule:
 
 
 class SigmaPointFilter(FilterBase):
-    """Predict/update of a sigma-point filter for a given :class:`SigmaRule`."""
+    """Predict/update of a sigma-point filter for the :class:`SigmaRule` of
+    :meth:`sigma_rule`."""
 
-    def __init__(self, model, x0, P0, rule: SigmaRule, measurements=None) -> None:
-        super().__init__(model, x0, P0, measurements)
-        self.rule = rule
+    class Settings(FilterSettings):
+        measurements: Measurements = measurements_field()
+
+    def __init__(self, model, x0, P0, **settings) -> None:
+        super().__init__(model, x0, P0, **settings)
+        self.rule = self.sigma_rule(model.nx)
+
+    def sigma_rule(self, n: int) -> SigmaRule:
+        """The rule of ``n`` states this filter uses (its settings are known)."""
+        raise NotImplementedError
 
     def _points(self, rule: SigmaRule) -> np.ndarray:
         self.P, L = factor(self.P, self.diagnostics)
@@ -155,23 +165,29 @@ class SigmaPointFilter(FilterBase):
 class UnscentedKalmanFilter(SigmaPointFilter):
     """Additive-noise UKF with the scaled unscented transform.
 
-    Settings: ``alpha`` (default 1: the points spread over the whole uncertainty ellipsoid,
-    which a terrain likelihood needs; 1e-3 as in Wan & van der Merwe makes it nearly an EKF),
-    ``beta`` (2, optimal for Gaussian priors), ``kappa`` (0), ``measurements``.
+    ``alpha = 1`` (the default) spreads the points over the whole uncertainty ellipsoid, which a
+    terrain likelihood needs; 1e-3 as in Wan & van der Merwe makes it nearly an EKF.
     """
 
-    def __init__(self, model, x0, P0, alpha: float = 1.0, beta: float = 2.0,
-                 kappa: float = 0.0, measurements: list[str] | None = None) -> None:
-        rule = unscented_rule(model.nx, float(alpha), float(beta), float(kappa))
-        super().__init__(model, x0, P0, rule, measurements)
+    class Settings(FilterSettings):
+        alpha: StrictFloat = Field(1.0, gt=0, description="spread of the sigma points (1: the "
+                                   "whole uncertainty ellipsoid; 1e-3 nearly an EKF)")
+        beta: StrictFloat = Field(2.0, description="prior knowledge of the distribution "
+                                  "(2: optimal for Gaussian priors)")
+        kappa: StrictFloat = Field(0.0, description="secondary scaling parameter")
+        measurements: Measurements = measurements_field()
+
+    def sigma_rule(self, n: int) -> SigmaRule:
+        s = self.settings
+        return unscented_rule(n, s.alpha, s.beta, s.kappa)
 
 
 @register("ckf")
 class CubatureKalmanFilter(SigmaPointFilter):
     """Cubature Kalman filter (third-degree spherical-radial rule, ``2n`` points)."""
 
-    def __init__(self, model, x0, P0, measurements: list[str] | None = None) -> None:
-        super().__init__(model, x0, P0, cubature_rule(model.nx), measurements)
+    def sigma_rule(self, n: int) -> SigmaRule:
+        return cubature_rule(n)
 
 
 @register("cukf")
@@ -211,13 +227,17 @@ class CubatureUnscentedKalmanFilter(SigmaPointFilter):
       ``P = P - K P_zz K'`` (sign as in (16)).
     """
 
-    def __init__(self, model, x0, P0, a: float | None = None, redraw: bool = False,
-                 measurements: list[str] | None = None) -> None:
-        n = model.nx
-        a = math.sqrt(3.0 / n) if a is None else float(a)
-        super().__init__(model, x0, P0, cukf_unscented_rule(n, a), measurements)
-        self.cubature = cubature_rule(n)
-        self.redraw = bool(redraw)
+    class Settings(FilterSettings):
+        a: StrictFloat | None = Field(None, gt=0, description="sigma-point scale of eq. (7) "
+                                      "(default sqrt(3/L))")
+        redraw: StrictBool = Field(False, description="redraw the measurement points from "
+                                   "the predicted moments (eqs. 10-13)")
+        measurements: Measurements = measurements_field()
+
+    def __init__(self, model, x0, P0, **settings) -> None:
+        super().__init__(model, x0, P0, **settings)
+        self.cubature = cubature_rule(model.nx)
+        self.redraw = self.settings.redraw
         self._cycle = -1
         self._propagated: np.ndarray | None = None
 
@@ -232,6 +252,10 @@ class CubatureUnscentedKalmanFilter(SigmaPointFilter):
         Y = self._propagate(self._points(rule), rule, u, dt)
         self._propagated = Y if self._unscented_cycle and not self.redraw else None
         self.diagnostics["cubature_step"] = 0.0 if self._unscented_cycle else 1.0
+
+    def sigma_rule(self, n: int) -> SigmaRule:
+        a = self.settings.a
+        return cukf_unscented_rule(n, math.sqrt(3.0 / n) if a is None else a)
 
     def update(self, z, mask=None) -> None:
         idx = self._begin_update(z, mask)

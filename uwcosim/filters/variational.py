@@ -54,12 +54,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
+from pydantic import Field, StrictBool, StrictFloat, StrictInt
 
 from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.numerics import kalman_gain, linearize, nis, symmetrize
 from uwcosim.filters.policies import Extrapolate
+from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
 
 
 @dataclass
@@ -138,28 +141,30 @@ def vb_update(
 class VariationalBayesAKF(FilterBase):
     """VB adaptive Kalman filter with inaccurate ``Q`` and ``R`` (Huang et al. 2018).
 
-    Settings: ``tau`` (3), ``rho`` (``1 - exp(-4)``), ``iterations`` (10), ``tol`` (1e-6:
-    stop when the state moves less than ``tol`` posterior standard deviations), ``u0``
-    (initial dof of ``R``, default ``m + 2``: the nominal ``R`` weighs as one sample),
-    ``measurements``. The model's ``Q`` and ``R`` are the nominal ``Q~`` and ``R~_0``.
+    The default ``u0 = m + 2`` makes the nominal ``R`` weigh as one sample. The model's ``Q``
+    and ``R`` are the nominal ``Q~`` and ``R~_0``.
     """
 
-    def __init__(self, model, x0, P0, tau: float = 3.0, rho: float = 1.0 - math.exp(-4.0),
-                 iterations: int = 10, tol: float = 1e-6, u0: float | None = None,
-                 measurements: list[str] | None = None) -> None:
-        super().__init__(model, x0, P0, measurements)
+    class Settings(FilterSettings):
+        tau: StrictFloat = Field(3.0, ge=0, description="tuning of the prior dof of P_{k|k-1}")
+        rho: StrictFloat = Field(1.0 - math.exp(-4.0), gt=0, le=1,
+                                 description="forgetting factor of the R estimate")
+        iterations: StrictInt = Field(10, ge=1, description="maximum VB iterations per update")
+        tol: StrictFloat = Field(1e-6, ge=0, description="stop when the state moves less than "
+                                 "tol posterior standard deviations")
+        u0: StrictFloat | None = Field(None, description="initial dof of R (default m + 2; "
+                                       "must exceed m + 1)")
+        measurements: Measurements = measurements_field()
+
+    def __init__(self, model, x0, P0, **settings) -> None:
+        super().__init__(model, x0, P0, **settings)
+        s = self.settings
         m = model.nz
-        if not float(tau) >= 0.0:
-            raise ValueError(f"tau must be >= 0, got {tau}")
-        if not 0.0 < float(rho) <= 1.0:
-            raise ValueError(f"rho must be in (0, 1], got {rho}")
-        if int(iterations) < 1:
-            raise ValueError(f"iterations must be >= 1, got {iterations}")
-        u0 = m + 2.0 if u0 is None else float(u0)
+        u0 = m + 2.0 if s.u0 is None else s.u0
         if not u0 > m + 1:
             raise ValueError(f"u0 must exceed m + 1 = {m + 1}, got {u0}")
-        self.tau, self.rho, self.tol = float(tau), float(rho), float(tol)
-        self.iterations = int(iterations)
+        self.tau, self.rho, self.tol = s.tau, s.rho, s.tol
+        self.iterations = s.iterations
         self.u = u0
         self.U = (u0 - m - 1.0) * np.array(model.R, dtype=float)  # E[R_0] = R~_0 (Huang eq. 16)
         self.last: VBResult | None = None
@@ -219,18 +224,26 @@ class ExtrapolatingVBAKF(VariationalBayesAKF):
     (eq. 28 extrapolation of lost components), built in.
 
     Uses ``est.t`` (set by the driver before ``update``) as the measurement time. Components
-    with fewer than three received values so far are skipped. Settings of ``vbakf`` plus
-    ``extrapolate`` (``"runs"`` or ``"isolated"``) and ``inflate_r`` (false; our correction,
-    see the module docstring); ``diagnostics['extrapolated']`` counts the filled components.
+    with fewer than three received values so far are skipped. ``inflate_r`` is our correction
+    (see the module docstring); ``diagnostics['extrapolated']`` counts the filled components.
     """
 
-    def __init__(self, model, x0, P0, tau: float = 3.0, rho: float = 1.0 - math.exp(-4.0),
-                 iterations: int = 10, tol: float = 1e-6, u0: float | None = None,
-                 measurements: list[str] | None = None, extrapolate: str = "runs",
-                 inflate_r: bool = False) -> None:
-        super().__init__(model, x0, P0, tau, rho, iterations, tol, u0, measurements)
-        self.interpolator = Extrapolate(model.nz, extrapolate)
-        self.inflate_r = bool(inflate_r)
+    class Settings(VariationalBayesAKF.Settings):
+        """``qivbf`` = ``vbakf`` + the ``extrapolate`` policy built in: its settings plus
+        these."""
+
+        extrapolate: Literal["runs", "isolated"] = Field(
+            "runs", description="extrapolate every lost component with three earlier receipts "
+            "(runs), or only a single loss after three receipts (isolated, seed 001 "
+            "Assumption 1)")
+        inflate_r: StrictBool = Field(False, description="inflate R of an extrapolated "
+                                      "component by the Lagrange noise gain (our correction, "
+                                      "not the paper's)")
+
+    def __init__(self, model, x0, P0, **settings) -> None:
+        super().__init__(model, x0, P0, **settings)
+        self.interpolator = Extrapolate(model.nz, self.settings.extrapolate)
+        self.inflate_r = self.settings.inflate_r
 
     def update(self, z, mask=None) -> None:
         mask = self._use if mask is None else np.asarray(mask, dtype=bool) & self._use

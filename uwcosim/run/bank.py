@@ -44,8 +44,8 @@ from uwcosim.core.errors import FilterDivergence, ScenarioError
 from uwcosim.core.jit import interrupted
 from uwcosim.core.rng import stream
 from uwcosim.filters import Estimator
+from uwcosim.filters.base import build
 from uwcosim.filters.policies import POLICIES
-from uwcosim.filters.settings import build
 from uwcosim.master.observer import StepView
 from uwcosim.models.protocol import StateSpaceModel
 from uwcosim.run.divergence import DivergenceCheck

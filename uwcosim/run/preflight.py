@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from uwcosim.core.errors import UwcosimError
-from uwcosim.filters.settings import build
+from uwcosim.filters.base import build
 from uwcosim.master.master import Master
 from uwcosim.run.factory import build_model, scenario_map
 from uwcosim.scenario.load import read_scenario

@@ -14,16 +14,15 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import ConfigDict, Field, create_model
 
+from uwcosim.filters import ESTIMATORS
+from uwcosim.filters.base import settings_model
+from uwcosim.filters.policies import POLICIES
 from uwcosim.scenario.schema import EstimatorSpec, Scenario
 
 SCHEMA_ID = "https://uwcosim.invalid/scenario.schema.json"
 
 
 def _estimator_variants() -> Any:
-    from uwcosim.filters import ESTIMATORS
-    from uwcosim.filters.policies import POLICIES
-    from uwcosim.filters.settings import settings_model
-
     common = {n: (f.annotation, f) for n, f in EstimatorSpec.model_fields.items() if n != "type"}
     common["policy"] = (Literal[tuple(POLICIES.names())], Field(
         "skip", description="what the filter does with lost measurements"))

@@ -27,8 +27,8 @@ from pydantic import BaseModel, ValidationError
 
 from uwcosim.core.errors import FMUError, ScenarioError, UwcosimError
 from uwcosim.filters import ESTIMATORS
+from uwcosim.filters.base import settings_model
 from uwcosim.filters.policies import POLICIES
-from uwcosim.filters.settings import settings_model
 from uwcosim.models.states import MODEL_STATES
 from uwcosim.scenario import schema
 from uwcosim.scenario.schema import EstimatorSpec, Scenario

@@ -28,6 +28,7 @@ from functools import lru_cache
 
 import numpy as np
 import scipy.fft as sfft
+from pydantic import Field, StrictBool, StrictFloat, StrictInt, StrictStr
 from scipy import ndimage, sparse
 
 from uwcosim.core.errors import FilterDivergence
@@ -49,6 +50,7 @@ from uwcosim.filters.grid.point_mass_fft import (
 )
 from uwcosim.filters.grid.spectral import axes_moments
 from uwcosim.filters.numerics import symmetrize
+from uwcosim.filters.settings import MEASUREMENTS, STATES, FilterSettings, Measurements
 
 # isort: split
 from uwcosim.filters.grid import point_mass_kernels as pmk  # after projection_kernels
@@ -217,19 +219,22 @@ def _shift_blur_2d(values: np.ndarray, spacing, coords: list[np.ndarray], D: np.
 class PointMassFilter(Estimator):
     """Grid (point-mass) Bayes filter with a grid re-centred on the support every step."""
 
-    def __init__(
-        self,
-        model,
-        x0,
-        P0,
-        n_points: int | list[int] = 101,
-        span: float = 8.0,
-        states: list | None = None,
-        measurements: list[str] | None = None,
-        long_run: bool = True,
-    ) -> None:
+    class Settings(FilterSettings):
+        n_points: StrictInt | list[StrictInt] = Field(101, description="grid points per gridded "
+                                                      "state (>= 5; one value or one per state)")
+        span: StrictFloat = Field(8.0, gt=0, description="half-width of the grid in standard "
+                                  "deviations")
+        states: list[StrictStr | StrictInt] | None = Field(None, description=STATES)
+        measurements: Measurements = Field(None, description=MEASUREMENTS)
+        long_run: StrictBool = Field(True, description="conditional Kalman filter of the other "
+                                     "states in its long-run form")
+
+    def __init__(self, model, x0, P0, **settings) -> None:
         model = symbolic(model)
-        super().__init__(model, x0, P0)
+        super().__init__(model, x0, P0, **settings)
+        s = self.settings
+        n_points, span, states, measurements = s.n_points, s.span, s.states, s.measurements
+        long_run = s.long_run
         self.part = Partition(model, states, measurements)
         self.kalman = ConditionalKalman(model, self.part, self.x, self.P, long_run)
         self.likelihood = GridLikelihood(model, self.part)

@@ -66,8 +66,10 @@ threshold the series gets the grid posterior's mean and covariance back), ``gate
 from __future__ import annotations
 
 import math
+from typing import Literal, get_args
 
 import numpy as np
+from pydantic import Field, StrictBool, StrictFloat, StrictInt, StrictStr
 from scipy.linalg import expm
 from scipy.sparse.linalg import expm_multiply
 
@@ -85,36 +87,54 @@ from uwcosim.filters.grid.likelihood import GridLikelihood
 from uwcosim.filters.grid.partition import Partition, symbolic
 from uwcosim.filters.grid.projection_bayes import BayesProduct
 from uwcosim.filters.numerics import symmetrize
+from uwcosim.filters.settings import MEASUREMENTS, STATES, FilterSettings, Measurements
 
-POSITIVITY = ("auto", "none", "threshold", "clip", "product", "jackson")
+#: the treatments of negative lobes of the truncated series, as a setting
+Positivity = Literal["auto", "none", "threshold", "clip", "product", "jackson"]
+POSITIVITY = get_args(Positivity)
 _NO_Z = np.zeros(0)  # the measurement vector of an update without measurements
 DENSE_EXPM_MAX = 1200  # basis size up to which exp(A dt) is formed densely
 @register("pfm_psi")
 class ProjectionFilter(BayesProduct, Estimator):
     """PFM-PSI projection filter (complex-exponential Galerkin projection of the FPE)."""
 
-    def __init__(
-        self,
-        model,
-        x0,
-        P0,
-        K: int = 10,
-        k_sigma: float = 4.0,
-        states: list | None = None,
-        measurements: list[str] | None = None,
-        grid_factor: float = 2.5,
-        positivity: str = "auto",
-        spectral_filter: float = 0.0,
-        long_run: bool = True,
-        min_halfwidth: float = 0.0,
-        resolution_inflation: float = 1.0,
-        refine: float = 0.7,
-        neg_limit: float = 0.1,
-        moment_match: bool = True,
-        gate: float = 5.0,
-    ) -> None:
+    class Settings(FilterSettings):
+        K: StrictInt = Field(10, ge=1, description="highest harmonic per dimension")
+        k_sigma: StrictFloat = Field(4.0, gt=0, description="half-width of the box (eq. 33) in "
+                                     "predicted standard deviations")
+        states: list[StrictStr | StrictInt] | None = Field(None, description=STATES)
+        measurements: Measurements = Field(None, description=MEASUREMENTS)
+        grid_factor: StrictFloat = Field(2.5, ge=2, description="quadrature points per basis "
+                                         "function and dimension")
+        positivity: Positivity = Field(
+            "auto", description="treatment of negative lobes of the truncated series")
+        spectral_filter: StrictFloat = Field(0.0, ge=0, description="even order of an "
+                                             "exponential filter (0 = off)")
+        long_run: StrictBool = Field(True, description="conditional Kalman filter of the other "
+                                     "states in its long-run form")
+        min_halfwidth: StrictFloat = Field(0.0, ge=0, description="floor of the box half-width")
+        resolution_inflation: StrictFloat = Field(
+            1.0, ge=0, description="inflate R by the variation of h within a resolution cell "
+            "(1 = on)")
+        refine: StrictFloat = Field(0.7, gt=0, description="redo the product on the "
+                                    "posterior box below this width ratio (1 = off)")
+        neg_limit: StrictFloat = Field(0.1, ge=0, description="negative mass above which 'auto' "
+                                       "thresholds")
+        moment_match: StrictBool = Field(True, description="give the series the grid "
+                                         "posterior's mean and covariance after a threshold")
+        gate: StrictFloat = Field(5.0, ge=0, description="implausible-measurement gate in "
+                                  "standard deviations (0 = off)")
+
+
+    def __init__(self, model, x0, P0, **settings) -> None:
         model = symbolic(model)
-        super().__init__(model, x0, P0)
+        super().__init__(model, x0, P0, **settings)
+        s = self.settings
+        K, k_sigma, states, measurements = s.K, s.k_sigma, s.states, s.measurements
+        grid_factor, positivity, spectral_filter = s.grid_factor, s.positivity, s.spectral_filter
+        long_run, min_halfwidth, resolution_inflation = (s.long_run, s.min_halfwidth,
+                                                         s.resolution_inflation)
+        refine, neg_limit, moment_match, gate = s.refine, s.neg_limit, s.moment_match, s.gate
         if int(K) != K or K < 1:
             raise ValueError(f"K must be a positive integer, got {K}")
         if not k_sigma > 0 or not grid_factor >= 2:

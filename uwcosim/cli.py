@@ -9,6 +9,10 @@
 ``uwcosim ssp export SCENARIO [--out FILE]``, ``uwcosim completion bash|zsh|tcsh``.
 Every ``--help`` shows the defaults.
 User errors are caught once here: one line on stderr, a non-zero exit status, no traceback.
+
+Each command imports its modules inside its function, when it runs: start-up laziness (``uwcosim
+--help`` and a command load only what that command needs). This is the one module of the
+package that imports uwcosim modules inside functions (``tests/test_architecture.py``).
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ the mean over runs of each run's RMSE) goes to ``table.md`` and ``table.csv``.
 from __future__ import annotations
 
 import csv
+import json
 from pathlib import Path
 
 import numpy as np
@@ -18,10 +19,19 @@ METRICS = ("rmse_position_m", "rmse_x_m", "rmse_y_m", "rmse_velocity_mps", "rmse
            "rmse_vy_mps", "anees", "time_per_step_s", "total_time_s")
 
 
+def read_record(path: Path) -> dict | None:
+    """A finished run's record, or None if the file is not a complete record (truncated)."""
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    if not isinstance(record, dict) or not {"variant", "run", "seed", "status"} <= set(record):
+        return None
+    return record
+
+
 def read_records(results: Path) -> list[dict]:
     """Every complete record (a truncated file, e.g. of a killed campaign, is skipped)."""
-    from uwcosim.campaign.execute import read_record
-
     records = (read_record(p) for p in sorted(results.glob("*.json")))
     return [r for r in records if r is not None]
 

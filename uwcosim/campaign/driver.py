@@ -25,6 +25,8 @@ from uwcosim.campaign.aggregate import (
 from uwcosim.campaign.execute import pending_tasks, run_tasks
 from uwcosim.campaign.spec import LoadedCampaign
 from uwcosim.core.errors import RunInterrupted, ScenarioError, UwcosimError
+from uwcosim.core.runguard import signal_name
+from uwcosim.plots.campaign_figures import rmse_per_run, summary_chart
 
 MANIFEST = "campaign.json"
 
@@ -107,8 +109,6 @@ def run_campaign(campaign: LoadedCampaign, out: Path, runs: int | None = None,
     if interrupted is not None:
         signum = getattr(interrupted, "signum", None)
         code = 128 + signum if signum else getattr(interrupted, "exit_code", 130)
-        from uwcosim.core.runguard import signal_name
-
         by = f" by {signal_name(code - 128)}" if code > 128 else ""
         err = RunInterrupted(f"campaign interrupted{by}: {summary['runs']} of {len(tasks)} "
                              f"runs finished in {out} (report.md marked partial; --resume "
@@ -143,8 +143,6 @@ def collect(campaign_dir: Path, figures: bool = True, out: Path | None = None,
     md, _ = write_tables(agg, out)
     figs = []
     if figures:
-        from uwcosim.plots.campaign_figures import rmse_per_run, summary_chart
-
         figs = rmse_per_run(rows, out) + [summary_chart(rows, out)]
     title = "# Campaign results (partial)" if partial else "# Campaign results"
     text = f"{title}\n\n{partial}{md.read_text()}\n" + "".join(

@@ -23,6 +23,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
+from uwcosim.campaign.aggregate import read_record
 from uwcosim.campaign.spec import Task
 from uwcosim.core.errors import RunInterrupted, ScenarioError, UwcosimError
 from uwcosim.core.process import die_with_parent
@@ -144,17 +145,6 @@ def _write(results: Path, task: Task, record: dict) -> None:
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(record, sort_keys=True))
     os.replace(tmp, path)
-
-
-def read_record(path: Path) -> dict | None:
-    """A finished run's record, or None if the file is not a complete record (truncated)."""
-    try:
-        record = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-        return None
-    if not isinstance(record, dict) or not {"variant", "run", "seed", "status"} <= set(record):
-        return None
-    return record
 
 
 def pending_tasks(tasks: list[Task], results: Path, resume: bool,

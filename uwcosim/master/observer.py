@@ -23,8 +23,24 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 if TYPE_CHECKING:
-    from uwcosim.master.master import Master
     from uwcosim.master.measurement import Measurement
+
+
+class SteppedSystem(Protocol):
+    """What a :class:`StepView` reads: the master's state (``k``, ``t = t0 + k*h``, the bus and
+    its names, the native and text values), its measurement and typed values."""
+
+    k: int
+    h: float
+    bus: np.ndarray
+    slots: dict[str, int]
+    native: dict[int, object]
+    text: dict[int, str]
+
+    @property
+    def t(self) -> float: ...
+    def measurement(self) -> Measurement: ...
+    def value(self, name: str) -> str | int | bool | float: ...
 
 
 class StepView:
@@ -32,7 +48,7 @@ class StepView:
 
     __slots__ = ("_master", "bus", "native", "slots", "text")
 
-    def __init__(self, master: Master) -> None:
+    def __init__(self, master: SteppedSystem) -> None:
         self._master = master
         #: the signal bus (float64, one slot per signal), not writable
         self.bus: np.ndarray = master.bus.view()

@@ -29,6 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from uwcosim.core.errors import RegressionInputError, UwcosimError
+from uwcosim.regress.plots import diff_plot
+from uwcosim.runlog import read_log
 
 DEFAULT_RTOL = 1e-6
 DEFAULT_ATOL = 1e-9
@@ -133,8 +135,7 @@ def check_tolerances(rtol: float, atol: float, ttol: float) -> None:
 
 
 def read_columns(path: Path) -> tuple[dict[str, np.ndarray], dict]:
-    from uwcosim.runlog import read_log
-
+    """The log's columns and metadata, or a one-line RegressionInputError."""
     try:
         cols, meta = read_log(path)
     except UwcosimError as exc:
@@ -276,8 +277,6 @@ def compare_logs(run: str | Path, baseline: str | Path, rtol: float = DEFAULT_RT
         rep.results.append(res)
         data[name] = arrays
     if plot_dir is not None and rep.failures:
-        from uwcosim.regress.plots import diff_plot
-
         out = Path(plot_dir)
         try:
             out.mkdir(parents=True, exist_ok=True)

@@ -18,8 +18,12 @@ from __future__ import annotations
 import zipfile
 from pathlib import Path
 
+from lxml import etree
+
 from uwcosim.core.errors import ScenarioError
-from uwcosim.scenario.load import LoadedScenario
+from uwcosim.fmi.adapter import read_description
+from uwcosim.fmi.varmap import fmu_unit
+from uwcosim.scenario.loaded import LoadedScenario
 from uwcosim.scenario.ssp.xml import FMU_TYPE, NS, UWC_NS
 
 _IMPLEMENTATION = {"cs": "CoSimulation", "me": "ModelExchange"}
@@ -46,10 +50,6 @@ def _typed(parent, prefix: str, value, unit: str | None = None) -> None:
 
 
 def _ssv(name: str, values: dict, variables: dict) -> bytes:
-    from lxml import etree
-
-    from uwcosim.fmi.varmap import fmu_unit
-
     root = etree.Element(f"{{{NS['ssv']}}}ParameterSet", {"version": "1.0", "name": name},
                          nsmap={"ssv": NS["ssv"]})
     params = _element(root, "ssv:Parameters")
@@ -65,11 +65,6 @@ def _ssv(name: str, values: dict, variables: dict) -> bytes:
 
 def export_ssp(loaded: LoadedScenario, out: str | Path) -> tuple[Path, list[str]]:
     """Write the truth side of ``loaded`` to ``out``; return the path and what was left out."""
-    from lxml import etree
-
-    from uwcosim.fmi.adapter import read_description
-    from uwcosim.fmi.varmap import fmu_unit
-
     spec = loaded.spec
     out = Path(out)
     where = str(loaded.path)

@@ -24,8 +24,11 @@ if TYPE_CHECKING:
     from fmpy.model_description import ModelDescription
 
 from uwcosim.core.errors import FMUError
+from uwcosim.core.paths import is_project_fmu
 
 INTERFACE_NAMES = {"cs": "co-simulation", "me": "model exchange"}
+#: what "FMU not found" adds for one of the project's own FMUs (:func:`is_project_fmu`)
+BUILD_HINT = " (build the project's FMUs with 'uwcosim fmu build')"
 
 
 def sha256_file(path: Path) -> str:
@@ -52,20 +55,11 @@ def member_names(path: Path) -> list[str]:
         return zf.namelist()
 
 
-def _build_hint(path: Path) -> str:
-    """The 'uwcosim fmu build' hint, for the project's own FMUs only."""
-    from uwcosim.fmu.build import FMI_VERSIONS, archive_name
-    from uwcosim.fmu.specs import MODELS
-
-    own = {archive_name(m, v) for m in MODELS for v in FMI_VERSIONS}
-    return " (build the project's FMUs with 'uwcosim fmu build')" if path.name in own else ""
-
-
 def archive_problems(path: str | Path) -> list[str]:
     """Problems that make ``path`` unusable as an FMU archive (empty list: readable)."""
     path = Path(path)
     if not path.exists():
-        return [f"{path}: FMU not found{_build_hint(path)}"]
+        return [f"{path}: FMU not found{BUILD_HINT if is_project_fmu(path) else ''}"]
     if path.is_dir():
         return [] if (path / "modelDescription.xml").is_file() else [
             f"{path}: not an FMU (folder without modelDescription.xml)"]

@@ -37,6 +37,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from uwcosim.core.errors import FMUError
+from uwcosim.core.paths import fmu_file_name
 from uwcosim.fmu.codegen import GUID_PLACEHOLDER, config_header, equations_c
 from uwcosim.fmu.model_description import generation_tool, model_description
 from uwcosim.fmu.specs import DEFAULT_MAP_FILE, DEFAULT_MAP_SEED, MODELS, get_spec
@@ -64,8 +65,9 @@ def normalize_version(fmi_version: str | int | float) -> str:
 
 
 def archive_name(model: str, fmi_version: str | int = "3.0") -> str:
-    """File name of the FMU of ``model``: ``<Model>.fmu`` (FMI 3.0), ``<Model>_fmi2.fmu``."""
-    return f"{model}.fmu" if normalize_version(fmi_version) == "3.0" else f"{model}_fmi2.fmu"
+    """File name of the FMU of ``model``: ``<Model>.fmu`` (FMI 3.0), ``<Model>_fmi2.fmu``
+    (:func:`uwcosim.core.paths.fmu_file_name`)."""
+    return fmu_file_name(model, normalize_version(fmi_version) == "3.0")
 
 
 def targets(names: list[str] | tuple[str, ...] | None = None) -> list[tuple[str, str]]:

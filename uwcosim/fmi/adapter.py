@@ -34,10 +34,9 @@ import numpy as np
 
 from uwcosim.core.errors import FMUError, ScenarioError
 from uwcosim.fmi.archive import (
-    archive_problems,
     binary_problems,
+    open_archive,
     open_description,
-    read_model,
     sha256_file,
     unzip,
 )
@@ -72,10 +71,7 @@ class FMUAdapter:
     ) -> None:
         self.name = name
         self.path = Path(path)
-        problems = archive_problems(self.path)
-        if problems:
-            raise FMUError(problems[0])
-        self.md = read_model(self.path)
+        self.md = open_archive(self.path)
         self.sha256 = sha256_file(self.path) if self.path.is_file() else ""
         self.fmi3 = self.md.fmiVersion.startswith("3")
         self.interface = interface

@@ -13,12 +13,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, TypeVar
-
-if TYPE_CHECKING:
-    from uwcosim.fmi.binding import Binding
+from typing import TypeVar
 
 from uwcosim.core.errors import FMUError, ScenarioError
+from uwcosim.fmi.binding import Binding
 
 #: FMI status codes (fmi2Status / fmi3Status) by value
 STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]

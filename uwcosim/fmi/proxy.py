@@ -28,16 +28,13 @@ import subprocess
 import sys
 import time
 import weakref
+from collections.abc import Callable
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
-
     from fmpy.model_description import ModelVariable
-
-    from uwcosim.fmi.varmap import VariableMap
 
 import numpy as np
 
@@ -46,6 +43,7 @@ from uwcosim.core.errors import FMUError, RunInterrupted, ScenarioError
 from uwcosim.core.paths import PACKAGE_DIR
 from uwcosim.fmi.adapter import FMUAdapter
 from uwcosim.fmi.binding import Binding
+from uwcosim.fmi.varmap import VariableMap
 
 #: seconds allowed for the worker to start (imports) before the first FMU call
 STARTUP_S = 60.0

@@ -35,16 +35,13 @@ import ctypes
 import functools
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from uwcosim.fmi.binding import Binding
-    from uwcosim.fmi.instance import Instance
 
 import numpy as np
 
 from uwcosim.core.errors import FMUError
 from uwcosim.core.integrators import rk4
+from uwcosim.fmi.binding import Binding
+from uwcosim.fmi.instance import Instance
 
 #: event iterations allowed before the FMU is declared not converging
 MAX_EVENT_ITERATIONS = 1000

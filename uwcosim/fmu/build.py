@@ -6,7 +6,7 @@ For every (model, FMI version) the build generates the CasADi C code of the equa
 one shared library (gcc, ``-shared -fPIC -O2``; ``$CC`` overrides the compiler) and zips the
 FMU. Every archive holds both interfaces, ModelExchange and CoSimulation.
 
-Naming scheme (``out_dir`` defaults to ``fmus/``):
+Naming scheme (``out_dir`` defaults to ``fmus/``; :func:`uwcosim.core.paths.fmu_file_name`):
 
 - ``<Model>.fmu``       FMI 3.0 (the default FMUs used by scenarios)
 - ``<Model>_fmi2.fmu``  FMI 2.0

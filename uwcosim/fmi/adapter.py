@@ -277,8 +277,10 @@ class FMUAdapter:
             self._me = ModelExchange(self._inst, self.set_continuous, t0, t_stop, nx=self.nx,
                                      nz=self.nz, solver=self.solver, substeps=self.substeps,
                                      rtol=self.rtol)
-            self._me.initial_event(t0)
-            self.terminated = self._me.terminated
+            try:
+                self._me.initial_event(t0)
+            finally:  # a request to stop, even if an error follows it
+                self.terminated = self._me.terminated
 
     def set_values(self, values: dict, checked: bool = False) -> None:
         """Set parameters/start values of any type by name (setup only, not the hot path)."""
@@ -358,8 +360,10 @@ class FMUAdapter:
         are set in event mode (with the event iteration that follows)."""
         self.set_continuous(b, t)
         if b.groups and self._me is not None and b.discrete_groups:
-            self._me.set_discrete(b, t)
-            self.terminated = self._me.terminated
+            try:
+                self._me.set_discrete(b, t)
+            finally:
+                self.terminated = self._me.terminated
 
     def get_outputs(self, b: Binding, t: float) -> np.ndarray:
         if not b.n:
@@ -390,9 +394,10 @@ class FMUAdapter:
             raise FMUError(f"FMU '{self.name}' ({self.path.name}): doStep at t={t:g} after the "
                            f"FMU asked to stop at t={self.terminated[0]:g}")
         if self._me is not None:
-            t_reached = self._me.step(t, h, inputs, input_fn)
-            self.terminated = self._me.terminated
-            return t_reached
+            try:
+                return self._me.step(t, h, inputs, input_fn)
+            finally:
+                self.terminated = self._me.terminated
         b = inputs
         if b.n:  # set_inputs inlined: the co-simulation hot path
             if b.groups:

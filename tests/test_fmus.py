@@ -14,14 +14,17 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
+from uwcosim.core import paths
 from uwcosim.core.errors import FMUError
 from uwcosim.fmu import build_fmu, build_fmus, fmu_info, validate
-from uwcosim.fmu.build import compile_shared, is_up_to_date, prepare, targets
+from uwcosim.fmu.build import archive_name, compile_shared, is_up_to_date, prepare, targets
 from uwcosim.fmu.specs import MODELS
 
 try:
+    from fault_injector import NAME as FAULT_MODEL
     from fmu_fixtures import CS, ME, Instance, fmu_dir, fmu_path
 except ImportError:  # tests/ imported as a package
+    from tests.fault_injector import NAME as FAULT_MODEL
     from tests.fmu_fixtures import CS, ME, Instance, fmu_dir, fmu_path
 
 __all__ = ["fmu_dir"]  # the session fixture, re-exported for pytest
@@ -40,6 +43,17 @@ def test_build_names_every_fmu(fmu_dir):
     for m in MODELS:
         assert read_model_description(str(fmu_path(fmu_dir, m))).fmiVersion == "3.0"
         assert read_model_description(str(fmu_path(fmu_dir, m, "2.0"))).fmiVersion == "2.0"
+
+
+def test_the_fmi_layer_knows_the_projects_fmus_by_their_build_names():
+    """core.paths names the project's FMUs for the FMI layer's build hint (which cannot import
+    the build tool): the same models as the specifications, the same file names as the build."""
+    shipped = [m for m in MODELS if m != FAULT_MODEL]  # the tests add their FaultInjector
+    assert sorted(paths.PROJECT_MODELS) == sorted(shipped)
+    for m in shipped:
+        for v in VERSIONS:
+            assert paths.is_project_fmu(f"/elsewhere/{archive_name(m, v)}")
+    assert not paths.is_project_fmu("fmus/ThirdPartyVehicle.fmu")
 
 
 def test_build_is_incremental(fmu_dir):

@@ -177,9 +177,9 @@ def test_reused_master_gives_the_same_log_as_a_fresh_one(tan, tmp_path):
     m = Master(to_system(loaded))
     try:
         run_scenario(loaded, tmp_path / "r1", seed=5, figures=False, master=m)
-        first = dict(m.adapters["vehicle"].__dict__)
+        first = m.adapters["vehicle"].instance.fmu
         run_scenario(loaded, tmp_path / "r2", seed=6, figures=False, master=m)
-        assert m.adapters["vehicle"]._fmu is first["_fmu"]  # the same instance, reset
+        assert m.adapters["vehicle"].instance.fmu is first  # the same instance, reset
     finally:
         m.close()
     run_scenario(loaded, tmp_path / "fresh", seed=6, figures=False)

@@ -6,8 +6,18 @@ import numpy as np
 import pytest
 
 from uwcosim.core.rng import stream
-from uwcosim.master.sources import loss_mask, white_noise
+from uwcosim.master.sources import loss_drawer, noise_drawer
 from uwcosim.master.system import BernoulliLoss, GilbertElliottLoss
+
+
+def white_noise(rng, n_steps, psd, h):
+    """Held white-noise samples ``[n_steps, n]`` of the master's noise sources, in one draw."""
+    return noise_drawer(rng, psd, h)(0, n_steps)
+
+
+def loss_mask(rng, n, spec):
+    """The received mask of ``n`` samples of the master's loss models, in one draw."""
+    return loss_drawer(rng, n, spec)(0, n)
 
 
 def test_streams_are_reproducible_and_independent():

@@ -1,8 +1,16 @@
 """The FMI layer: one FMU as an object, over fmpy (imports only :mod:`uwcosim.core`).
 
-The archive and its checks (``archive``), the FMI types (``vartypes``), variable maps of
-third-party FMUs (``varmap``), the adapter of one FMU (``adapter``: co-simulation and model
-exchange, FMI 2.0 and 3.0), its typed get/set buffers (``binding``), the model-exchange
-integrators (``solvers``) and the worker-process proxy of an FMU with a time limit
-(``proxy``). See ``docs/architecture.md``.
+- ``archive``: the archive and its checks (readable zip, model description, this platform's
+  binary), with the build hint for a missing FMU of the project's own;
+- ``vartypes``: the FMI 2.0 / 3.0 types, value checks and conversions;
+- ``structure``: the model structure (which outputs depend directly on which inputs);
+- ``varmap``: variable maps of third-party FMUs (roles, units, conventions);
+- ``binding``: value references and typed get/set buffers of a group of variables;
+- ``instance``: one instantiated FMU (fmpy's object, its C functions, the status checks);
+- ``solvers``: the model-exchange integrators (RK4/DOP853 fast path, CVode with events);
+- ``adapter``: one FMU behind one interface (co-simulation and model exchange, FMI 2.0 and
+  3.0), on top of the modules above;
+- ``proxy``: the same interface for an FMU in a worker process, with a time limit per call.
+
+See ``docs/architecture.md``.
 """

@@ -7,6 +7,9 @@ the archive is checked (:mod:`uwcosim.fmi.archive`) and unzipped once, value ref
 resolved by name once, and :class:`~uwcosim.fmi.binding.Binding` keeps ctypes arrays (with
 numpy views on them) ready so a step costs only the FMI calls themselves. Every FMI 2/3 scalar
 type is handled (:mod:`uwcosim.fmi.vartypes`); FMI 3 arrays as parameters and start values.
+The instantiated FMU is an :class:`~uwcosim.fmi.instance.Instance` (its C functions, component
+and status checks; :attr:`FMUAdapter.instance`), the handle the model-exchange integrator gets;
+the outputs' direct dependencies on the inputs come from :mod:`uwcosim.fmi.structure`.
 
 An FMU that asks to stop (co-simulation: FMI 2 ``fmi2Discard`` with ``fmi2Terminated``, FMI 3
 ``terminateSimulation``; model exchange: ``terminateSimulation`` of an event update or of
@@ -31,20 +34,20 @@ import numpy as np
 
 from uwcosim.core.errors import FMUError, ScenarioError
 from uwcosim.fmi.archive import (
-    archive_problems,
     binary_problems,
+    open_archive,
     open_description,
-    read_model,
     sha256_file,
     unzip,
 )
 from uwcosim.fmi.binding import Binding, make_binding
+from uwcosim.fmi.instance import Instance, status_label
+from uwcosim.fmi.solvers import ModelExchange
+from uwcosim.fmi.structure import feedthrough
 from uwcosim.fmi.varmap import VariableMap, resolve_map
 from uwcosim.fmi.vartypes import FLOAT64, coerce, is_continuous_input, kind, type_info
 
 __all__ = ["Binding", "FMUAdapter", "read_description", "sha256_file"]
-
-STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 
 
 def read_description(path: Path, interface: str | None = None) -> ModelDescription:
@@ -68,10 +71,7 @@ class FMUAdapter:
     ) -> None:
         self.name = name
         self.path = Path(path)
-        problems = archive_problems(self.path)
-        if problems:
-            raise FMUError(problems[0])
-        self.md = read_model(self.path)
+        self.md = open_archive(self.path)
         self.sha256 = sha256_file(self.path) if self.path.is_file() else ""
         self.fmi3 = self.md.fmiVersion.startswith("3")
         self.interface = interface
@@ -101,11 +101,11 @@ class FMUAdapter:
         self.model_identifier = kind_.modelIdentifier
         self.nx = int(self.md.numberOfContinuousStates or 0) if interface == "me" else 0
         self.nz = int(self.md.numberOfEventIndicators or 0) if interface == "me" else 0
-        self._fmu = None
-        self._me = None
+        self._inst: Instance | None = None
+        self._me: ModelExchange | None = None
+        self._closed_solver: str | None = None  # the ME integrator used, kept by close()
         self._pending: list[Binding] = []  # typed bindings made before the library is loaded
         self._typed: list[Binding] = []  # every typed binding (discrete inputs: last values)
-        self._instantiated = False
         self.time_s = 0.0  # wall time spent in this FMU's calls (set by the master)
 
     # -- variables --------------------------------------------------------------------------
@@ -138,9 +138,8 @@ class FMUAdapter:
                 and kind(v) != "unsupported" and not getattr(v, "dimensions", None)]
 
     def feedthrough(self) -> dict[str, set[str]]:
-        """``{output: {inputs it depends on directly}}`` under the exposed names."""
-        from uwcosim.master.graph import feedthrough
-
+        """``{output: {inputs it depends on directly}}`` under the exposed names
+        (:func:`uwcosim.fmi.structure.feedthrough`)."""
         ren = self.varmap.raw_to_exposed
         return {ren[o]: {ren[i] for i in ins if i in ren}
                 for o, ins in feedthrough(self.md).items() if o in ren}
@@ -161,16 +160,11 @@ class FMUAdapter:
         if not b.groups:
             return b
         self._typed.append(b)
-        if self._fmu is not None:
-            self._resolve_groups(b)
+        if self._inst is not None:
+            self._inst.resolve(b)
         else:
             self._pending.append(b)
         return b
-
-    def _resolve_groups(self, b: Binding) -> None:
-        for g in b.groups:
-            if isinstance(g.get, str):
-                g.get, g.set = self._raw[g.get], self._raw[g.set]
 
     def check_values(self, values: dict, where: str = "") -> dict:
         """Parameters/start values checked against the declared types and converted (native
@@ -196,8 +190,7 @@ class FMUAdapter:
         status = args[-3]
         text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
         text = text.replace("%%", "%")  # FMI 2 messages are printf formats
-        label = STATUS[status] if 0 <= status < len(STATUS) else str(status)
-        self.messages.append(f"[{label}] {text}")
+        self.messages.append(f"[{status_label(status)}] {text}")
         del self.messages[:-20]
 
     def _unzip(self) -> str:
@@ -216,14 +209,15 @@ class FMUAdapter:
         An adapter that already holds an instance resets it (``fmi2Reset``/``fmi3Reset``) and
         initializes it again instead: campaigns reuse one instance per worker for many runs.
         """
-        from fmpy import fmi2, fmi3
+        from fmpy import fmi2, fmi3  # lazy: fmpy (0.1 s) only once an FMU is instantiated
 
         values = self.check_values({**parameters, **start})
         self.terminated = None
-        if self._fmu is not None:
+        inst = self._inst
+        if inst is not None:
             self.messages.clear()
-            self._guard("reset", self._fmu.reset, t0)
-            self._guard("setup", lambda: self._initialize(self._fmu, values, t0, t_stop), t0)
+            inst.guard("reset", inst.fmu.reset, t0)
+            inst.guard("setup", lambda: self._initialize(values, t0, t_stop), t0)
             return
         unzip_dir = self._unzip()
         guid = self.md.instantiationToken if self.fmi3 else self.md.guid
@@ -253,17 +247,21 @@ class FMUAdapter:
         finally:
             if os.getcwd() != cwd:
                 os.chdir(cwd)
-        self._fmu = fmu
-        self._instantiated = True
-        self._raw = fmu._functions
-        self._c = fmu.component
-        self._prepare_fast_calls()
+        self._inst = inst = Instance(fmu, self.name, self.path, self.fmi3, self.messages)
+        self._prepare_fast_calls(inst)
         for b in self._pending:
-            self._resolve_groups(b)
+            inst.resolve(b)
         self._pending = []
-        self._guard("setup", lambda: self._initialize(fmu, values, t0, t_stop), t0)
+        inst.guard("setup", lambda: self._initialize(values, t0, t_stop), t0)
 
-    def _initialize(self, fmu, values: dict, t0: float, t_stop: float) -> None:
+    @property
+    def instance(self) -> Instance | None:
+        """The handle of the FMU instance (None before :meth:`instantiate`, after :meth:`close`);
+        one instance serves every run of a reused adapter."""
+        return self._inst
+
+    def _initialize(self, values: dict, t0: float, t_stop: float) -> None:
+        fmu = self._inst.fmu
         if not self.fmi3:
             fmu.setupExperiment(startTime=t0)
         self.set_values(values, checked=True)
@@ -273,17 +271,20 @@ class FMUAdapter:
             fmu.enterInitializationMode()
         fmu.exitInitializationMode()
         if self.interface == "me":
-            from uwcosim.fmi.solvers import ModelExchange
-
             for b in self._typed:  # a new run: every discrete input is set again
                 for g in b.groups:
                     g.last = None
-            self._me = ModelExchange(self, t0, t_stop)
-            self._me.initial_event(t0)
+            self._me = ModelExchange(self._inst, self.set_continuous, t0, t_stop, nx=self.nx,
+                                     nz=self.nz, solver=self.solver, substeps=self.substeps,
+                                     rtol=self.rtol)
+            try:
+                self._me.initial_event(t0)
+            finally:  # a request to stop, even if an error follows it
+                self.terminated = self._me.terminated
 
     def set_values(self, values: dict, checked: bool = False) -> None:
         """Set parameters/start values of any type by name (setup only, not the hot path)."""
-        fmu = self._fmu
+        fmu = self._inst.fmu
         if not checked:
             values = self.check_values(values)
         for name, value in values.items():
@@ -306,7 +307,7 @@ class FMUAdapter:
             if info is None:
                 raise FMUError(f"{self.path}: FMU '{self.name}': cannot get {name!r} of type "
                                f"{v.type}")
-            getter = getattr(self._fmu, f"get{info[2]}")
+            getter = getattr(self._inst.fmu, f"get{info[2]}")
             n = int(np.prod(v.shape)) if getattr(v, "dimensions", None) else 1
             vals = getter([v.valueReference], n) if self.fmi3 else getter([v.valueReference])
             vals = [bool(x) for x in vals] if info[0] == "bool" else [
@@ -316,34 +317,19 @@ class FMUAdapter:
                 a.to_ours(vals[0]) if a is not None else vals[0])
         return out
 
-    def _prepare_fast_calls(self) -> None:
+    def _prepare_fast_calls(self, inst: Instance) -> None:
         p = "fmi3" if self.fmi3 else "fmi2"
-        self._set = self._raw[f"{p}SetFloat64" if self.fmi3 else "fmi2SetReal"]
-        self._get = self._raw[f"{p}GetFloat64" if self.fmi3 else "fmi2GetReal"]
+        self._c = inst.component
+        self._check = inst.check  # bound once: the status check of every hot-path call
+        self._set = inst.function(f"{p}SetFloat64" if self.fmi3 else "fmi2SetReal")
+        self._get = inst.function(f"{p}GetFloat64" if self.fmi3 else "fmi2GetReal")
         if self.interface == "cs":
-            self._do_step = self._raw[f"{p}DoStep"]
+            self._do_step = inst.function(f"{p}DoStep")
             self._flags = [ctypes.c_bool() for _ in range(3)] + [ctypes.c_double()]
             self._flag_refs = [ctypes.byref(f) for f in self._flags]
             self._terminate_flag, self._early_flag = self._flags[1], self._flags[2]
 
     # -- hot path ---------------------------------------------------------------------------
-    def _check(self, status: int, what: str, t: float) -> None:
-        if status > 1:
-            label = STATUS[status] if status < len(STATUS) else str(status)
-            last = f": {self.messages[-1]}" if self.messages else ""
-            raise FMUError(f"FMU '{self.name}' ({self.path.name}): {what} returned {label} "
-                           f"at t={t:g}{last}")
-
-    def _guard(self, what: str, fn: Callable, t: float):
-        try:
-            return fn()
-        except (FMUError, ScenarioError):
-            raise
-        except Exception as exc:  # noqa: BLE001 - fmpy's FMICallException and friends
-            last = f": {self.messages[-1]}" if self.messages else ""
-            raise FMUError(f"FMU '{self.name}' ({self.path.name}): {what} failed at t={t:g} "
-                           f"({exc}){last}") from None
-
     def _set_groups(self, b: Binding, groups, t: float) -> None:
         b.to_fmu()
         for g in groups:
@@ -374,7 +360,10 @@ class FMUAdapter:
         are set in event mode (with the event iteration that follows)."""
         self.set_continuous(b, t)
         if b.groups and self._me is not None and b.discrete_groups:
-            self._me.set_discrete(b, t)
+            try:
+                self._me.set_discrete(b, t)
+            finally:
+                self.terminated = self._me.terminated
 
     def get_outputs(self, b: Binding, t: float) -> np.ndarray:
         if not b.n:
@@ -405,7 +394,10 @@ class FMUAdapter:
             raise FMUError(f"FMU '{self.name}' ({self.path.name}): doStep at t={t:g} after the "
                            f"FMU asked to stop at t={self.terminated[0]:g}")
         if self._me is not None:
-            return self._me.step(t, h, inputs, input_fn)
+            try:
+                return self._me.step(t, h, inputs, input_fn)
+            finally:
+                self.terminated = self._me.terminated
         b = inputs
         if b.n:  # set_inputs inlined: the co-simulation hot path
             if b.groups:
@@ -425,7 +417,7 @@ class FMUAdapter:
             st = self._do_step(self._c, t, h, 1)
             if st == 2 and self._fmi2_terminated():
                 t_end = self._fmi2_last_time(t)
-                self.terminated = (t_end, self._reason("fmi2Terminated"))
+                self.terminated = (t_end, self._inst.reason("fmi2Terminated"))
                 return t_end
         if st > 1:
             self._check(st, "doStep", t)
@@ -436,31 +428,31 @@ class FMUAdapter:
         if self._terminate_flag.value and st <= 2:
             last = self._flags[3].value  # the FMU's time when doStep returned
             t_end = last if t <= last <= t + h else t + h
-            self.terminated = (t_end, self._reason("terminateSimulation"))
+            self.terminated = (t_end, self._inst.reason("terminateSimulation"))
             return t_end
         self._check(st, "doStep", t)
         raise FMUError(f"FMU '{self.name}' ({self.path.name}): doStep returned early at "
                        f"t={self._flags[3].value:g} (early return was not allowed)")
 
-    def _reason(self, what: str) -> str:
-        """``terminateSimulation`` / ``fmi2Terminated`` and the FMU's last log message."""
-        return f"{what}: {self.messages[-1]}" if self.messages else what
-
     def _fmi2_terminated(self) -> bool:
         flag = ctypes.c_int(0)
-        st = self._raw["fmi2GetBooleanStatus"](self._c, 3, ctypes.byref(flag))  # fmi2Terminated
+        get_status = self._inst.function("fmi2GetBooleanStatus")
+        st = get_status(self._c, 3, ctypes.byref(flag))  # fmi2Terminated
         return st <= 1 and bool(flag.value)
 
     def _fmi2_last_time(self, t: float) -> float:
         value = ctypes.c_double(t)
-        st = self._raw["fmi2GetRealStatus"](self._c, 2, ctypes.byref(value))
+        st = self._inst.function("fmi2GetRealStatus")(self._c, 2, ctypes.byref(value))
         return value.value if st <= 1 else t
 
     # -- model exchange -----------------------------------------------------------------------
     @property
-    def solver_used(self) -> str:
-        """``rk4``/``adaptive`` (no events) or ``cvode`` (event-aware); after instantiate."""
-        return self._me.solver_name if self._me is not None else self.solver
+    def solver_used(self) -> str | None:
+        """``rk4``/``adaptive`` (no events) or ``cvode`` (event-aware): the integrator of the
+        instance (the last one used after :meth:`close`; None before :meth:`instantiate`)."""
+        if self._me is not None:
+            return self._me.solver_name
+        return self.solver if self._inst is not None else self._closed_solver
 
     @property
     def event_times(self) -> list[float]:
@@ -472,12 +464,14 @@ class FMUAdapter:
 
     # -- end ----------------------------------------------------------------------------------
     def reset(self) -> None:
-        if self._fmu is not None:
-            self._guard("reset", self._fmu.reset, 0.0)
+        if self._inst is not None:
+            self._inst.guard("reset", self._inst.fmu.reset, 0.0)
 
     def close(self) -> None:
-        fmu, self._fmu = self._fmu, None
+        self._closed_solver = self.solver_used  # kept: the integrator this instance used
+        inst, self._inst = self._inst, None
         self._me = None
+        fmu = None if inst is None else inst.fmu
         if fmu is not None:
             try:
                 fmu.terminate()

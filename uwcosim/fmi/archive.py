@@ -6,8 +6,10 @@ deflate stream: every member is read once), a member name that is absolute or cl
 the folder with ``..`` (it would be extracted outside the FMU's folder), no
 ``modelDescription.xml``. :func:`binary_problems` checks the shared library of this platform
 for each interface (FMI 2 ``binaries/linux64``, FMI 3 ``binaries/x86_64-linux``).
-:func:`open_description` runs both and raises one-line :class:`~uwcosim.core.errors.FMUError` s;
-:func:`unzip` extracts a checked archive.
+:func:`open_archive` checks the archive and reads its model description, :func:`open_description`
+checks the binaries too; both raise one-line :class:`~uwcosim.core.errors.FMUError` s.
+:func:`unzip` extracts a checked archive. A missing FMU of the project's own
+(:func:`uwcosim.core.paths.is_project_fmu`) is reported with the hint to build it.
 
 A folder that holds an unzipped FMU (``modelDescription.xml`` at its top) is accepted too.
 """
@@ -24,8 +26,11 @@ if TYPE_CHECKING:
     from fmpy.model_description import ModelDescription
 
 from uwcosim.core.errors import FMUError
+from uwcosim.core.paths import is_project_fmu
 
 INTERFACE_NAMES = {"cs": "co-simulation", "me": "model exchange"}
+#: what "FMU not found" adds for one of the project's own FMUs (:func:`is_project_fmu`)
+BUILD_HINT = " (build the project's FMUs with 'uwcosim fmu build')"
 
 
 def sha256_file(path: Path) -> str:
@@ -52,20 +57,11 @@ def member_names(path: Path) -> list[str]:
         return zf.namelist()
 
 
-def _build_hint(path: Path) -> str:
-    """The 'uwcosim fmu build' hint, for the project's own FMUs only."""
-    from uwcosim.fmu.build import FMI_VERSIONS, archive_name
-    from uwcosim.fmu.specs import MODELS
-
-    own = {archive_name(m, v) for m in MODELS for v in FMI_VERSIONS}
-    return " (build the project's FMUs with 'uwcosim fmu build')" if path.name in own else ""
-
-
 def archive_problems(path: str | Path) -> list[str]:
     """Problems that make ``path`` unusable as an FMU archive (empty list: readable)."""
     path = Path(path)
     if not path.exists():
-        return [f"{path}: FMU not found{_build_hint(path)}"]
+        return [f"{path}: FMU not found{BUILD_HINT if is_project_fmu(path) else ''}"]
     if path.is_dir():
         return [] if (path / "modelDescription.xml").is_file() else [
             f"{path}: not an FMU (folder without modelDescription.xml)"]
@@ -94,6 +90,7 @@ def archive_problems(path: str | Path) -> list[str]:
 
 def read_model(path: str | Path) -> ModelDescription:
     """The model description of an archive :func:`archive_problems` found readable."""
+    # lazy: fmpy (0.1 s) once an FMU is opened, not when the master's modules are imported
     from fmpy.model_description import read_model_description
 
     try:
@@ -107,7 +104,7 @@ def binary_problems(path: str | Path, md: ModelDescription,
                     names: list[str] | None = None) -> list[str]:
     """A problem if an interface in ``interfaces`` the FMU declares has no shared library for
     this platform (FMI 2: ``binaries/<fmpy.platform>``, FMI 3: ``binaries/<platform_tuple>``)."""
-    import fmpy
+    import fmpy  # lazy: as in read_model
 
     path = Path(path)
     plat = fmpy.platform_tuple if md.fmiVersion.startswith("3") else fmpy.platform
@@ -125,14 +122,20 @@ def binary_problems(path: str | Path, md: ModelDescription,
     return []
 
 
+def open_archive(path: str | Path) -> ModelDescription:
+    """Validate the archive (not its binaries) and return its model description; the first
+    problem as a one-line :class:`FMUError`."""
+    problems = archive_problems(path)
+    if problems:
+        raise FMUError(problems[0])
+    return read_model(path)
+
+
 def open_description(path: str | Path, interface: str | None = None) -> ModelDescription:
     """Validate the archive (and the binary for ``interface``, or every interface when None)
     and return its model description; the first problem as a one-line :class:`FMUError`."""
     path = Path(path)
-    problems = archive_problems(path)
-    if problems:
-        raise FMUError(problems[0])
-    md = read_model(path)
+    md = open_archive(path)
     ifaces = ("cs", "me") if interface is None else (interface,)
     problems = binary_problems(path, md, ifaces)
     if problems:

@@ -23,33 +23,35 @@ of after ``timeout_s``; the worker is then killed.
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
 import weakref
+from collections.abc import Callable
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
-
     from fmpy.model_description import ModelVariable
-
-    from uwcosim.fmi.varmap import VariableMap
 
 import numpy as np
 
 from uwcosim.core import process, runguard
 from uwcosim.core.errors import FMUError, RunInterrupted, ScenarioError
 from uwcosim.core.paths import PACKAGE_DIR
-from uwcosim.fmi.adapter import Binding, FMUAdapter
+from uwcosim.fmi.adapter import FMUAdapter
+from uwcosim.fmi.binding import Binding
+from uwcosim.fmi.varmap import VariableMap
 
 #: seconds allowed for the worker to start (imports) before the first FMU call
 STARTUP_S = 60.0
 #: an answer is awaited in slices of this many seconds (a stop request is seen between them)
 _SLICE_S = 0.05
 _ERRORS = {"FMUError": FMUError, "ScenarioError": ScenarioError}
+
+
 class ProxyAdapter:
     """An :class:`FMUAdapter` look-alike whose FMU runs in a worker process."""
 
@@ -66,7 +68,8 @@ class ProxyAdapter:
         self._args = (name, str(self.local.path), interface, solver, substeps, rtol, None,
                       None if unzip_dir is None else str(unzip_dir))
         self.terminated: tuple[float, str] | None = None
-        self.solver_used = solver
+        #: the integrator the worker reports after instantiate (the configured one until then)
+        self.solver_used: str | None = solver
         self._map: tuple | None = None
         self._bindings: list[Binding] = []
         self._ids: dict[int, int] = {}
@@ -303,8 +306,6 @@ def _serve(req: Connection, resp: Connection) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import signal
-
     # Ctrl-C reaches the whole process group: the master decides, and closes or kills us;
     # if the master dies, so do we
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):

@@ -22,7 +22,11 @@ step of the master) and chooses the integrator once, after initialization:
 Discrete inputs (Integer, Boolean, String, or discrete Real) are set in event mode at the
 communication point when they changed (the FMU refuses them in continuous-time mode).
 ``terminateSimulation`` from an event update or from ``completedIntegratorStep`` stops the
-integration at that time and sets :attr:`FMUAdapter.terminated`.
+integration at that time and sets :attr:`ModelExchange.terminated` (the adapter's
+:attr:`~uwcosim.fmi.adapter.FMUAdapter.terminated` after the call).
+
+The integrator calls the FMU through its :class:`~uwcosim.fmi.instance.Instance` (the C
+functions, the component and the status checks), not through the adapter.
 """
 
 from __future__ import annotations
@@ -31,16 +35,13 @@ import ctypes
 import functools
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from uwcosim.fmi.adapter import FMUAdapter
-    from uwcosim.fmi.binding import Binding
 
 import numpy as np
 
 from uwcosim.core.errors import FMUError
 from uwcosim.core.integrators import rk4
+from uwcosim.fmi.binding import Binding
+from uwcosim.fmi.instance import Instance
 
 #: event iterations allowed before the FMU is declared not converging
 MAX_EVENT_ITERATIONS = 1000
@@ -58,7 +59,7 @@ def _close(a: float, b: float) -> bool:
 def dop853(deriv: Callable, x0: np.ndarray, t: float, h: float, rtol: float,
            name: str) -> np.ndarray:
     """scipy's adaptive DOP853 from ``t`` to ``t + h`` (no events)."""
-    from scipy.integrate import solve_ivp
+    from scipy.integrate import solve_ivp  # lazy: scipy.integrate only for solver "adaptive"
 
     sol = solve_ivp(deriv, (t, t + h), x0, method="DOP853", rtol=rtol, atol=rtol * 1e-3)
     if not sol.success:
@@ -76,6 +77,7 @@ class _NoInput:
 
 @functools.cache
 def _cvode_class():
+    # lazy: fmpy.sundials loads the SUNDIALS libraries, needed only on the event-aware path
     from fmpy.sundials import CVodeSolver
     from fmpy.sundials.libraries import sundials_core
     from fmpy.sundials.sundials_context import SUNContext_PushErrHandler
@@ -113,73 +115,85 @@ def _cvode_class():
 
 
 class ModelExchange:
-    """Steps one model-exchange FMU instance (see the module docstring)."""
+    """Steps one model-exchange FMU instance (see the module docstring).
 
-    def __init__(self, adapter: FMUAdapter, t0: float, t_stop: float) -> None:
-        self.ad = ad = adapter
-        p = "fmi3" if ad.fmi3 else "fmi2"
-        raw, self._c = ad._raw, ad._c
-        self.nx, self.nz = ad.nx, ad.nz
+    It calls the FMU through its :class:`~uwcosim.fmi.instance.Instance` and sets the continuous
+    inputs with ``set_continuous(binding, t)`` (the adapter's); :attr:`terminated` is set when
+    the FMU asks to stop."""
+
+    def __init__(self, instance: Instance, set_continuous: Callable[[Binding, float], None],
+                 t0: float, t_stop: float, *, nx: int, nz: int, solver: str = "rk4",
+                 substeps: int = 1, rtol: float = 1e-8) -> None:
+        self.inst = inst = instance
+        self._set_continuous = set_continuous
+        fmi3 = inst.fmi3
+        p = "fmi3" if fmi3 else "fmi2"
+        fn, self._c = inst.function, inst.component
+        self.nx, self.nz = nx, nz
+        self.substeps, self.rtol = substeps, rtol
         self._x = (ctypes.c_double * self.nx)()
         self._dx = (ctypes.c_double * self.nx)()
         self.xv = np.ctypeslib.as_array(self._x) if self.nx else np.zeros(0)
         self.dxv = np.ctypeslib.as_array(self._dx) if self.nx else np.zeros(0)
-        self._set_time = raw[f"{p}SetTime"]
-        self._set_states = raw[f"{p}SetContinuousStates"]
-        self._get_states = raw[f"{p}GetContinuousStates"]
-        self._get_der = raw["fmi3GetContinuousStateDerivatives" if ad.fmi3 else
-                            "fmi2GetDerivatives"]
-        self._get_z = raw[f"{p}GetEventIndicators"]
-        self._get_nominals = raw[f"{p}GetNominalsOfContinuousStates"]
-        self._completed = raw[f"{p}CompletedIntegratorStep"]
-        self._enter_event = raw[f"{p}EnterEventMode"]
-        flag = ctypes.c_bool if ad.fmi3 else ctypes.c_int
+        self._set_time = fn(f"{p}SetTime")
+        self._set_states = fn(f"{p}SetContinuousStates")
+        self._get_states = fn(f"{p}GetContinuousStates")
+        self._get_der = fn("fmi3GetContinuousStateDerivatives" if fmi3 else
+                           "fmi2GetDerivatives")
+        self._get_z = fn(f"{p}GetEventIndicators")
+        self._get_nominals = fn(f"{p}GetNominalsOfContinuousStates")
+        self._completed = fn(f"{p}CompletedIntegratorStep")
+        self._enter_event = fn(f"{p}EnterEventMode")
+        flag = ctypes.c_bool if fmi3 else ctypes.c_int
         self._cflags = [flag(), flag()]
         self._cflag_refs = [ctypes.byref(f) for f in self._cflags]
-        self._true = True if ad.fmi3 else 1  # noSetFMUStatePriorToCurrentPoint
+        self._true = True if fmi3 else 1  # noSetFMUStatePriorToCurrentPoint
         self.t0, self.t_stop = t0, t_stop
         self.max_step = (t_stop - t0) / 50.0 if t_stop > t0 else math.inf
         self.next_event: float | None = None
-        self.solver_name = "cvode" if self.nz else ad.solver
+        self.solver_name = "cvode" if self.nz else solver
         self.cvode = None
         self._t = t0
         self._inputs = None
         self._input_fn = None
+        #: ``(time, reason)`` once the FMU asked to stop (an event update or
+        #: completedIntegratorStep), else None
+        self.terminated: tuple[float, str] | None = None
         #: times of the events handled after initialization (the first MAX_LOGGED_EVENTS)
         self.event_times: list[float] = []
 
     # -- event mode ---------------------------------------------------------------------------
     def _iterate(self, t: float) -> None:
-        fmu = self.ad._fmu
-        update = fmu.updateDiscreteStates if self.ad.fmi3 else fmu.newDiscreteStates
+        fmu = self.inst.fmu
+        update = fmu.updateDiscreteStates if self.inst.fmi3 else fmu.newDiscreteStates
         for _ in range(MAX_EVENT_ITERATIONS):
-            need, terminate, _, _, defined, t_next = self.ad._guard("event update", update, t)
+            need, terminate, _, _, defined, t_next = self.inst.guard("event update", update, t)
             if terminate:
-                self.ad.terminated = (t, self.ad._reason("terminateSimulation (event update)"))
+                self.terminated = (t, self.inst.reason("terminateSimulation (event update)"))
                 return
             if not need:
                 self.next_event = float(t_next) if defined else None
                 return
-        raise FMUError(f"FMU '{self.ad.name}' ({self.ad.path.name}): event iteration did not "
+        raise FMUError(f"FMU '{self.inst.name}' ({self.inst.path.name}): event iteration did not "
                        f"converge at t={t:g} ({MAX_EVENT_ITERATIONS} iterations)")
 
     def initial_event(self, t0: float) -> None:
         """After exitInitializationMode (event mode): iterate, then continuous-time mode."""
         self._iterate(t0)
-        if self.ad.terminated is None:
-            self.ad._guard("enterContinuousTimeMode", self.ad._fmu.enterContinuousTimeMode, t0)
+        if self.terminated is None:
+            self.inst.guard("enterContinuousTimeMode", self.inst.fmu.enterContinuousTimeMode, t0)
         if self.next_event is not None:
             self.solver_name = "cvode"
 
     def _event(self, t: float, before=None) -> None:
-        self.ad._check(self._enter_event(self._c), "enterEventMode", t)
+        self.inst.check(self._enter_event(self._c), "enterEventMode", t)
         if before is not None:
             before()
         if len(self.event_times) < MAX_LOGGED_EVENTS:
             self.event_times.append(t)
         self._iterate(t)
-        if self.ad.terminated is None:
-            self.ad._guard("enterContinuousTimeMode", self.ad._fmu.enterContinuousTimeMode, t)
+        if self.terminated is None:
+            self.inst.guard("enterContinuousTimeMode", self.inst.fmu.enterContinuousTimeMode, t)
         if self.next_event is not None:
             self.solver_name = "cvode"  # a time event from now on: the event-aware path
         if self.cvode is not None:
@@ -196,16 +210,16 @@ class ModelExchange:
                                            else cur == g.last)
             if not same:
                 changed.append((g, cur))
-        if not changed or self.ad.terminated is not None:
+        if not changed or self.terminated is not None:
             return
 
         def apply() -> None:
             for g, cur in changed:
-                if self.ad.fmi3:
+                if self.inst.fmi3:
                     st = g.set(self._c, g.vr, g.n, g.buf, g.n)
                 else:
                     st = g.set(self._c, g.vr, g.n, g.buf)
-                self.ad._check(st, "set discrete inputs", t)
+                self.inst.check(st, "set discrete inputs", t)
                 g.last = cur
 
         self._event(t, apply)
@@ -213,31 +227,31 @@ class ModelExchange:
     # -- stepping -----------------------------------------------------------------------------
     def states(self) -> np.ndarray:
         if self.nx:
-            self.ad._check(self._get_states(self._c, self._x, self.nx), "getContinuousStates",
-                           self._t)
+            self.inst.check(self._get_states(self._c, self._x, self.nx), "getContinuousStates",
+                            self._t)
         return self.xv.copy()
 
     def step(self, t: float, h: float, inputs: Binding, input_fn: Callable | None) -> float:
         if inputs.groups and inputs.discrete_groups:
             self.set_discrete(inputs, t)
-        if self.ad.terminated is not None:
-            return self.ad.terminated[0]
+        if self.terminated is not None:
+            return self.terminated[0]
         if self.solver_name == "cvode":
             return self._step_events(t, t + h, inputs, input_fn)
         x_end = self._fixed(t, h, inputs, input_fn)
         self._finish(t + h, x_end, inputs, input_fn)
-        return self.ad.terminated[0] if self.ad.terminated is not None else t + h
+        return self.terminated[0] if self.terminated is not None else t + h
 
     def _deriv(self, t: float, x: np.ndarray, inputs, input_fn) -> np.ndarray:
-        ad = self.ad
-        ad._check(self._set_time(self._c, t), "setTime", t)
+        check = self.inst.check
+        check(self._set_time(self._c, t), "setTime", t)
         if input_fn is not None:
             input_fn(t, inputs.view)
-        ad.set_continuous(inputs, t)
+        self._set_continuous(inputs, t)
         if self.nx:
             self.xv[:] = x
-            ad._check(self._set_states(self._c, self._x, self.nx), "setContinuousStates", t)
-            ad._check(self._get_der(self._c, self._dx, self.nx), "getDerivatives", t)
+            check(self._set_states(self._c, self._x, self.nx), "setContinuousStates", t)
+            check(self._get_der(self._c, self._dx, self.nx), "getDerivatives", t)
         return self.dxv.copy()
 
     def _fixed(self, t: float, h: float, inputs, input_fn) -> np.ndarray:
@@ -246,24 +260,24 @@ class ModelExchange:
             if not self.nx:
                 return x
             return dop853(lambda tt, xx: self._deriv(tt, xx, inputs, input_fn), x, t, h,
-                          self.ad.rtol, self.ad.name)
+                          self.rtol, self.inst.name)
         return rk4(lambda tt, xx: self._deriv(tt, xx, inputs, input_fn), x, t, h,
-                   self.ad.substeps)
+                   self.substeps)
 
     def _finish(self, t: float, x_end: np.ndarray, inputs, input_fn) -> None:
-        ad = self.ad
-        ad._check(self._set_time(self._c, t), "setTime", t)
+        inst = self.inst
+        inst.check(self._set_time(self._c, t), "setTime", t)
         self._t = t
         if input_fn is not None:
             input_fn(t, inputs.view)
-        ad.set_continuous(inputs, t)
+        self._set_continuous(inputs, t)
         if self.nx:
             self.xv[:] = x_end
-            ad._check(self._set_states(self._c, self._x, self.nx), "setContinuousStates", t)
+            inst.check(self._set_states(self._c, self._x, self.nx), "setContinuousStates", t)
         st = self._completed(self._c, self._true, *self._cflag_refs)
-        ad._check(st, "completedIntegratorStep", t)
+        inst.check(st, "completedIntegratorStep", t)
         if self._cflags[1].value:
-            ad.terminated = (t, ad._reason("terminateSimulation (completedIntegratorStep)"))
+            self.terminated = (t, inst.reason("terminateSimulation (completedIntegratorStep)"))
             return
         if self._cflags[0].value:
             self._event(t)
@@ -274,41 +288,41 @@ class ModelExchange:
         self._t = t
         st = self._set_time(self._c, t)
         if st > 1:
-            self.ad._check(st, "setTime", t)
+            self.inst.check(st, "setTime", t)
         if self._input_fn is not None:
             self._input_fn(t, self._inputs.view)
-            self.ad.set_continuous(self._inputs, t)
+            self._set_continuous(self._inputs, t)
 
     def _cb_get_x(self, p, n) -> None:
         st = self._get_states(self._c, p, n)
         if st > 1:
-            self.ad._check(st, "getContinuousStates", self._t)
+            self.inst.check(st, "getContinuousStates", self._t)
 
     def _cb_set_x(self, p, n) -> None:
         st = self._set_states(self._c, p, n)
         if st > 1:
-            self.ad._check(st, "setContinuousStates", self._t)
+            self.inst.check(st, "setContinuousStates", self._t)
 
     def _cb_get_dx(self, p, n) -> None:
         st = self._get_der(self._c, p, n)
         if st > 1:
-            self.ad._check(st, "getDerivatives", self._t)
+            self.inst.check(st, "getDerivatives", self._t)
 
     def _cb_get_z(self, p, n) -> None:
         st = self._get_z(self._c, p, n)
         if st > 1:
-            self.ad._check(st, "getEventIndicators", self._t)
+            self.inst.check(st, "getEventIndicators", self._t)
 
     def _cb_get_nominals(self, p, n) -> None:
-        self.ad._check(self._get_nominals(self._c, p, n), "getNominalsOfContinuousStates",
-                       self._t)
+        self.inst.check(self._get_nominals(self._c, p, n), "getNominalsOfContinuousStates",
+                        self._t)
 
     def _make_cvode(self, t: float):
         return _cvode_class()(
             nx=self.nx, nz=self.nz, get_x=self._cb_get_x, set_x=self._cb_set_x,
             get_dx=self._cb_get_dx, get_z=self._cb_get_z, get_nominals=self._cb_get_nominals,
             set_time=self._cb_set_time, input=_NoInput(), startTime=t, maxStep=self.max_step,
-            relativeTolerance=self.ad.rtol, maxNumSteps=MAX_CVODE_STEPS)
+            relativeTolerance=self.rtol, maxNumSteps=MAX_CVODE_STEPS)
 
     def _integrate(self, time: float, t_next: float) -> tuple[bool, float]:
         """CVode from ``time`` to ``t_next`` or the first root: ``(state event, time)``."""
@@ -325,16 +339,16 @@ class ModelExchange:
                 raise err from None
             info = self.cvode.error_info
             why = err or (info[3] if info else exc)
-            raise FMUError(f"FMU '{self.ad.name}' ({self.ad.path.name}): CVode failed between "
+            raise FMUError(f"FMU '{self.inst.name}' ({self.inst.path.name}): CVode failed between "
                            f"t={time:g} and {t_next:g} ({why})") from None
         return bool(state_event), float(reached)
 
     def _step_events(self, t: float, t_end: float, inputs, input_fn) -> float:
-        ad = self.ad
+        inst = self.inst
         self._inputs, self._input_fn = inputs, input_fn
         if input_fn is not None:
             self._cb_set_time(t)  # refreshes the continuous inputs
-        ad.set_continuous(inputs, t)
+        self._set_continuous(inputs, t)
         time, flag_true, same_time = t, self._true, 0
         while True:
             t_next, time_event = t_end, False
@@ -351,19 +365,20 @@ class ModelExchange:
             self._cb_set_time(time)
             st = self._completed(self._c, flag_true, *self._cflag_refs)
             if st > 1:
-                ad._check(st, "completedIntegratorStep", time)
+                inst.check(st, "completedIntegratorStep", time)
             if self._cflags[1].value:
-                ad.terminated = (time, ad._reason("terminateSimulation (completedIntegratorStep)"))
+                self.terminated = (time, inst.reason(
+                    "terminateSimulation (completedIntegratorStep)"))
                 return time
             if state_event or time_event or self._cflags[0].value:
                 same_time = same_time + 1 if self.event_times and time == self.event_times[-1] \
                     else 0
                 if same_time > MAX_EVENT_ITERATIONS:
-                    raise FMUError(f"FMU '{ad.name}' ({ad.path.name}): more than "
+                    raise FMUError(f"FMU '{inst.name}' ({inst.path.name}): more than "
                                    f"{MAX_EVENT_ITERATIONS} events at t={time:g} (time events "
                                    f"that do not advance?)")
                 self._event(time)
-                if ad.terminated is not None:
+                if self.terminated is not None:
                     return time
             if time >= t_end or _close(time, t_end):
                 return t_end

@@ -65,7 +65,9 @@ REAL_TYPES = ("Real", "Float64")
 _ENTRY_KEYS = ("var", "unit", "ours", "scale", "offset", "negate", "start_var")
 
 
-def _canonical(unit: str) -> str:
+def canonical_unit(unit: str) -> str:
+    """The name :data:`UNITS` knows a unit by (``"kn"`` -> ``"knots"``, ``"m/s^2"`` ->
+    ``"m/s2"``...; an unknown unit as written, without surrounding blanks)."""
     unit = unit.strip()
     return _ALIASES.get(unit, unit)
 
@@ -96,7 +98,7 @@ def fmu_unit(var: ModelVariable) -> str | None:
 def unit_conversion(theirs: str, ours: str,
                     md: ModelDescription | None = None) -> tuple[float, float]:
     """``(f, g)`` with ``ours = f * theirs + g``; ScenarioError-free: raises ValueError."""
-    t, o = _canonical(theirs), _canonical(ours)
+    t, o = canonical_unit(theirs), canonical_unit(ours)
     if t == o:
         return 1.0, 0.0
     if o not in UNITS:
@@ -257,7 +259,8 @@ def resolve_map(entries: dict[str, dict], md: ModelDescription, role: str | None
             except ValueError as exc:
                 problems.append(f"{key}: {exc}")
                 continue
-            if e.get("unit") and declared and _canonical(declared) != _canonical(e["unit"]):
+            if (e.get("unit") and declared
+                    and canonical_unit(declared) != canonical_unit(e["unit"])):
                 vmap.warnings.append(f"{key}: unit {e['unit']!r} given, the FMU declares "
                                      f"{declared!r} for {v.name!r} (using {e['unit']!r})")
         else:

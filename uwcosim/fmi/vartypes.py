@@ -87,7 +87,7 @@ def numpy_dtype(var: ModelVariable, fmi3: bool | None = None) -> np.dtype:
 
 def arrow_type(var: ModelVariable, fmi3: bool | None = None) -> pa.DataType:
     """The pyarrow type of a log column for the variable."""
-    import pyarrow as pa
+    import pyarrow as pa  # lazy: pyarrow (0.15 s) only for the log's schema
 
     dt = numpy_dtype(var, fmi3)
     return pa.string() if dt == np.dtype(object) else pa.from_numpy_dtype(dt)

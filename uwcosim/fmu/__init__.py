@@ -1,8 +1,16 @@
-"""The project's FMUs: generated from the CasADi equations, compiled with a C template.
+"""FMU tools: the project's FMUs, built from the CasADi equations, and checks of any FMU.
 
+- :mod:`~uwcosim.fmu.specs` describes each of the project's models once (variables, units,
+  start values, equations); :mod:`~uwcosim.fmu.codegen` makes their C sources and
+  :mod:`~uwcosim.fmu.model_description` their ``modelDescription.xml``; the C template is in
+  ``templates/``;
 - :func:`build_fmus` / :func:`build_fmu` (:mod:`uwcosim.fmu.build`) build ``fmus/<Model>.fmu``
-  (FMI 3.0) and ``fmus/<Model>_fmi2.fmu`` (FMI 2.0), each with ModelExchange and CoSimulation;
-- :func:`fmu_info` / :func:`validate` (:mod:`uwcosim.fmu.info`) describe and check any FMU.
+  (FMI 3.0) and ``fmus/<Model>_fmi2.fmu`` (FMI 2.0), each with ModelExchange and CoSimulation
+  (``uwcosim fmu build``);
+- :func:`fmu_info` / :func:`validate` (:mod:`uwcosim.fmu.info`) describe and check any FMU
+  (``uwcosim fmu info|validate``);
+- :func:`~uwcosim.fmu.check.check_fmu` (:mod:`uwcosim.fmu.check`): can an FMU play a role,
+  the vehicle's with a smoke run (``uwcosim fmu check``).
 
 Imports are lazy so that ``python -m uwcosim.fmu.build`` runs cleanly.
 """

@@ -6,7 +6,7 @@ For every (model, FMI version) the build generates the CasADi C code of the equa
 one shared library (gcc, ``-shared -fPIC -O2``; ``$CC`` overrides the compiler) and zips the
 FMU. Every archive holds both interfaces, ModelExchange and CoSimulation.
 
-Naming scheme (``out_dir`` defaults to ``fmus/``):
+Naming scheme (``out_dir`` defaults to ``fmus/``; :func:`uwcosim.core.paths.fmu_file_name`):
 
 - ``<Model>.fmu``       FMI 3.0 (the default FMUs used by scenarios)
 - ``<Model>_fmi2.fmu``  FMI 2.0
@@ -37,9 +37,11 @@ from functools import lru_cache
 from pathlib import Path
 
 from uwcosim.core.errors import FMUError
+from uwcosim.core.paths import fmu_file_name
 from uwcosim.fmu.codegen import GUID_PLACEHOLDER, config_header, equations_c
 from uwcosim.fmu.model_description import generation_tool, model_description
 from uwcosim.fmu.specs import DEFAULT_MAP_FILE, DEFAULT_MAP_SEED, MODELS, get_spec
+from uwcosim.models.terrain import synthetic_bathymetry
 
 log = logging.getLogger(__name__)
 
@@ -64,8 +66,9 @@ def normalize_version(fmi_version: str | int | float) -> str:
 
 
 def archive_name(model: str, fmi_version: str | int = "3.0") -> str:
-    """File name of the FMU of ``model``: ``<Model>.fmu`` (FMI 3.0), ``<Model>_fmi2.fmu``."""
-    return f"{model}.fmu" if normalize_version(fmi_version) == "3.0" else f"{model}_fmi2.fmu"
+    """File name of the FMU of ``model``: ``<Model>.fmu`` (FMI 3.0), ``<Model>_fmi2.fmu``
+    (:func:`uwcosim.core.paths.fmu_file_name`)."""
+    return fmu_file_name(model, normalize_version(fmi_version) == "3.0")
 
 
 def targets(names: list[str] | tuple[str, ...] | None = None) -> list[tuple[str, str]]:
@@ -87,14 +90,22 @@ def targets(names: list[str] | tuple[str, ...] | None = None) -> list[tuple[str,
 def binary_dir(fmi_version: str) -> str:
     """Folder of this platform's binary inside an FMU (``binaries/linux64`` for FMI 2.0,
     ``binaries/x86_64-linux`` for FMI 3.0)."""
-    import fmpy
+    import fmpy  # lazy: as in library_name
 
     plat = fmpy.platform_tuple if normalize_version(fmi_version) == "3.0" else fmpy.platform
     return f"binaries/{plat}"
 
 
-def _fmi_headers() -> Path:
+def library_name(model: str) -> str:
+    """The file name of ``model``'s shared library on this platform (``<Model>.so``)."""
+    # lazy: fmpy only to build (uwcosim list and demo import this module for its names)
     import fmpy
+
+    return f"{model}{fmpy.sharedLibraryExtension}"
+
+
+def _fmi_headers() -> Path:
+    import fmpy  # lazy: as in library_name
 
     path = Path(fmpy.__file__).resolve().parent / "c-code"
     if not (path / "fmi3Functions.h").is_file():
@@ -105,8 +116,6 @@ def _fmi_headers() -> Path:
 @lru_cache(maxsize=1)
 def default_map_bytes() -> bytes:
     """The DepthSounder's default map: ``synthetic_bathymetry(seed=7)`` as UWCBATH1 bytes."""
-    from uwcosim.models.terrain import synthetic_bathymetry
-
     with tempfile.TemporaryDirectory(prefix="uwcosim-map-") as tmp:
         path = synthetic_bathymetry(DEFAULT_MAP_SEED).write_coefficients(Path(tmp) / "map")
         return path.read_bytes()
@@ -188,14 +197,12 @@ def _zip_write(zf: zipfile.ZipFile, name: str, data: bytes, mode: int = 0o644) -
 
 
 def _package(src: Sources, binary: Path, out_path: Path) -> None:
-    import fmpy
-
     info = {"format": BUILD_FORMAT, "model": src.model, "fmi_version": src.fmi_version,
             "source_hash": src.digest, "guid": src.guid, "generator": generation_tool()}
     tmp = out_path.with_name(f".{out_path.name}.{os.getpid()}.tmp")
     with zipfile.ZipFile(tmp, "w") as zf:
         _zip_write(zf, "modelDescription.xml", src.xml.encode())
-        lib = f"{binary_dir(src.fmi_version)}/{src.model}{fmpy.sharedLibraryExtension}"
+        lib = f"{binary_dir(src.fmi_version)}/{library_name(src.model)}"
         _zip_write(zf, lib, binary.read_bytes(), 0o755)
         for name, data in sorted(src.resources.items()):
             _zip_write(zf, f"resources/{name}", data)
@@ -217,9 +224,7 @@ def _build(src: Sources, out_path: Path) -> Path:
                                                                  wrapper)]
     if src.hooks is not None:
         sources.append(Path(src.hooks))
-    import fmpy
-
-    binary = work / f"{src.model}{fmpy.sharedLibraryExtension}"
+    binary = work / library_name(src.model)
     try:
         compile_shared(sources, binary, [work, TEMPLATE_DIR, _fmi_headers()],
                        label=f"{out_path.name} (sources kept in {work})")
@@ -244,12 +249,10 @@ def build_info(path: str | Path) -> dict | None:
 
 def is_up_to_date(path: Path, src: Sources) -> bool:
     """True if ``path`` was built from exactly ``src`` and has this platform's binary."""
-    import fmpy
-
     info = build_info(path)
     if info is None or info.get("source_hash") != src.digest:
         return False
-    lib = f"{binary_dir(src.fmi_version)}/{src.model}{fmpy.sharedLibraryExtension}"
+    lib = f"{binary_dir(src.fmi_version)}/{library_name(src.model)}"
     try:
         with zipfile.ZipFile(path) as zf:
             return lib in zf.namelist() and "modelDescription.xml" in zf.namelist()

@@ -18,8 +18,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from fmpy.validation import validate_fmu
 
 from uwcosim.core.errors import FMUError, ScenarioError
+from uwcosim.fmi.archive import archive_problems, open_archive
+from uwcosim.fmi.proxy import ProxyAdapter
 from uwcosim.fmi.varmap import (
     ROLES,
     VariableMap,
@@ -28,6 +31,8 @@ from uwcosim.fmi.varmap import (
     missing_roles,
     resolve_map,
 )
+from uwcosim.fmu.info import platform_problems
+from uwcosim.models.auv_equations import rk4_step, vehicle_ode
 
 SMOKE_PSI = 0.5  # rad
 SMOKE_A = 0.01  # m/s^2
@@ -91,8 +96,6 @@ def me_solver_lines(path: Path, md, timeout_s: float, report: CheckReport) -> No
     Event indicators are read from the model description; time events are known only after
     initialization, so an FMU without event indicators is initialized (default parameters) in
     a worker process to see whether it defines a time event."""
-    from uwcosim.fmi.proxy import ProxyAdapter
-
     nz = int(md.numberOfEventIndicators or 0)
     nx = int(md.numberOfContinuousStates or 0)
     head = f"  ME solver         {nx} continuous state(s), {nz} event indicator(s): "
@@ -162,8 +165,6 @@ def reference_positions(t: np.ndarray, p0, v0, psi: float, a: float):
     acceleration, from its one definition
     (:func:`~uwcosim.models.auv_equations.vehicle_ode`; one RK4 step of any length is exact for
     it)."""
-    from uwcosim.models.auv_equations import rk4_step, vehicle_ode
-
     t = np.asarray(t, dtype=float)
     x0 = np.array([p0[0], p0[1], v0[0], v0[1]], dtype=float)
     X = np.array(rk4_step(vehicle_ode()).map(t.size)(x0, [psi, a], np.zeros(4), t))
@@ -174,8 +175,6 @@ def smoke_run(path: Path, entries: dict, role: str, interface: str, duration: fl
               step: float, timeout_s: float, report: CheckReport,
               where: tuple[str, str] = ("", "")) -> None:
     """Run the FMU for ``duration`` s with constant inputs; add lines/problems to ``report``."""
-    from uwcosim.fmi.proxy import ProxyAdapter
-
     ad = ProxyAdapter("check", path, interface, "rk4", 4, 1e-8, timeout_s)
     try:
         if entries:
@@ -258,27 +257,23 @@ def check_fmu(path: str | Path, role: str | None = "vehicle", map_file: str | No
               interface: str | None = None, duration: float = 10.0, step: float = 0.5,
               timeout_s: float = 30.0) -> CheckReport:
     """Check the FMU at ``path`` for ``role`` with the variable map ``map_file``."""
-    from uwcosim.fmu.info import _check_archive, _read, platform_problems
-
     path = Path(path)
     if not path.exists():
         raise FMUError(f"{path}: FMU not found")
     rep = CheckReport(path)
     rep.lines.append(f"{path.name}" + (f" (role {role}" if role else " (no role")
                      + (f", map {map_file})" if map_file else ")"))
-    rep.problems += _check_archive(path)
+    rep.problems += archive_problems(path)
     if rep.problems:
         rep.lines.append("  archive           FAILED")
         return rep
     try:
-        md = _read(path)
+        md = open_archive(path)
         rep.problems += platform_problems(path, md)
     except FMUError as exc:
         rep.problems.append(str(exc))
         return rep
     # the standard's finer points (fmpy's validation) do not stop the master: warnings
-    from fmpy.validation import validate_fmu
-
     try:
         findings = list(validate_fmu(str(path)))
     except Exception as exc:  # noqa: BLE001 - fmpy raises bare Exceptions

@@ -1,4 +1,5 @@
-"""Describe and check FMUs: :func:`fmu_info` (a readable summary) and :func:`validate`.
+"""Describe and check FMUs: :func:`fmu_info` (a readable summary), :func:`validate` and
+:func:`platform_problems`.
 
 Works on any FMI 2.0 / 3.0 FMU, not only the ones :mod:`uwcosim.fmu.build` produces. The
 archive checks are those of the master (:mod:`uwcosim.fmi.archive`).
@@ -8,8 +9,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from fmpy import supported_platforms
+from fmpy.validation import validate_fmu
+
 from uwcosim.core.errors import FMUError
-from uwcosim.fmi.archive import archive_problems, binary_problems, read_model
+from uwcosim.fmi.archive import archive_problems, binary_problems, open_archive
 from uwcosim.fmi.vartypes import describe
 
 
@@ -17,22 +21,10 @@ def _yes(flag) -> str:
     return "yes" if flag in (True, "true", "1") else "no"
 
 
-def _check_archive(path: Path) -> list[str]:
-    """Problems that make the file unusable as an FMU archive (empty list if readable)."""
-    return archive_problems(path)
-
-
-def _read(path: Path):
-    problems = archive_problems(path)
-    if problems:
-        raise FMUError(problems[0])
-    return read_model(path)
-
-
 def platform_problems(path: str | Path, md=None) -> list[str]:
     """A problem string if the FMU has no binary for this platform (empty list otherwise)."""
     path = Path(path)
-    return binary_problems(path, md or _read(path))
+    return binary_problems(path, md or open_archive(path))
 
 
 def validate(path: str | Path) -> list[str]:
@@ -42,10 +34,8 @@ def validate(path: str | Path) -> list[str]:
     (XML schema, variable names, ModelStructure, start values, units) and that the FMU has a
     binary for this platform. Never raises for a bad file: problems are returned as strings.
     """
-    from fmpy.validation import validate_fmu
-
     path = Path(path)
-    problems = _check_archive(path)
+    problems = archive_problems(path)
     if problems:
         return problems
     try:
@@ -66,10 +56,8 @@ def _fmt(v) -> str:
 
 def fmu_info(path: str | Path) -> str:
     """A readable summary of the FMU: FMI version, interfaces, capabilities, variables."""
-    from fmpy import supported_platforms
-
     path = Path(path)
-    md = _read(path)
+    md = open_archive(path)
     lines = [f"{path.name}",
              f"  FMI version       {md.fmiVersion}",
              f"  model name        {md.modelName}"]

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
+import casadi
+
 from uwcosim.core.version import __version__
 from uwcosim.fmu.specs import UNITS, ModelSpec, Variable, dependencies, layout
 
@@ -38,8 +40,6 @@ def _num(v: float) -> str:
 
 
 def generation_tool() -> str:
-    import casadi
-
     return f"uwcosim {__version__} (CasADi {casadi.__version__})"
 
 

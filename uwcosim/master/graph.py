@@ -1,34 +1,18 @@
 """Connection graph: Gauss-Seidel stepping order and algebraic-loop detection.
 
 Variables are nodes; a connection ``a.y -> b.u`` is an edge, and inside an FMU an edge
-``u -> y`` exists where the output ``y`` depends directly on the input ``u`` (ModelStructure;
-no dependency list means "depends on every input"). A cycle in this graph is an algebraic loop.
-FMUs are stepped in topological order of the FMU graph restricted to feedthrough edges, which
-is Gauss-Seidel: a downstream FMU sees its upstream's outputs of the same communication point.
+``u -> y`` exists where the output ``y`` depends directly on the input ``u`` (its
+ModelStructure, :func:`uwcosim.fmi.structure.feedthrough`; no dependency list means "depends on
+every input"). A cycle in this graph is an algebraic loop. FMUs are stepped in topological
+order of the FMU graph restricted to feedthrough edges, which is Gauss-Seidel: a downstream FMU
+sees its upstream's outputs of the same communication point.
 """
 
 from __future__ import annotations
 
 from graphlib import CycleError, TopologicalSorter
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from fmpy.model_description import ModelDescription
 
 from uwcosim.core.errors import AlgebraicLoopError
-
-
-def feedthrough(md: ModelDescription) -> dict[str, set[str]]:
-    """``{output name: {input names it depends on directly}}`` from a model description."""
-    inputs = {v.name for v in md.modelVariables if v.causality == "input"}
-    deps: dict[str, set[str]] = {}
-    for unknown in md.outputs:
-        var = unknown.variable
-        if unknown.dependencies is None:
-            deps[var.name] = set(inputs)
-        else:
-            deps[var.name] = {d.name for d in unknown.dependencies if d.name in inputs}
-    return deps
 
 
 def stepping_order(

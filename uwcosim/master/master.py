@@ -467,20 +467,15 @@ class Master(SystemChecks):
 
     def me_solvers(self) -> dict[str, str]:
         """``{fmu: "rk4" | "adaptive" | "cvode"}``: the integrator of each ME FMU (the last one
-        used; kept after :meth:`close`)."""
-        solvers = getattr(self, "_solvers", {})
-        for name, ad in self.adapters.items():
-            if ad.interface == "me" and getattr(ad, "_fmu", True) is not None:
-                solvers[name] = ad.solver_used
-        self._solvers = solvers
-        return dict(solvers)
+        used; kept after :meth:`close`: the adapters keep it)."""
+        return {name: ad.solver_used for name, ad in self.adapters.items()
+                if ad.interface == "me" and ad.solver_used is not None}
 
     def fmu_hashes(self) -> dict[str, str]:
         return {n: a.sha256 for n, a in self.adapters.items()}
 
     def close(self) -> None:
         """Free every FMU instance and delete the unzipped archives (idempotent)."""
-        self.me_solvers()  # remembered for the summary
         try:
             for ad in self.adapters.values():
                 ad.close()

@@ -1,7 +1,7 @@
 """Measurements of a run, from one owner: the :class:`SensorBank`.
 
 A sensor (``[sensors.NAME]``) is a group of FMU outputs measured together. The bank does for
-every sensor, with the master's seeded streams (:func:`~uwcosim.master.sources.stream`):
+every sensor, with the master's seeded streams (:func:`~uwcosim.core.rng.stream`):
 
 - **sampling**: a sample every ``period`` steps, the first at step ``period`` (never at ``t0``);
 - **loss**: a seeded mask per sensor (stream ``loss:NAME``; Bernoulli or Gilbert-Elliott, seed

@@ -1,8 +1,17 @@
 """Signal sources owned by the master: control inputs, noise, and measurement-loss models.
 
-All randomness comes from :func:`stream`, one independent ``numpy.random.Generator`` per named
-purpose derived from the run seed, so adding a sensor does not change another sensor's noise,
-and the same scenario and seed always give the same samples.
+- controls: :class:`TableControl` (a table, sampled on the grid; for model exchange also at the
+  integrator's stage times, :class:`StageInputs`) and :class:`WaypointHeading` (closed loop on
+  the true position); :func:`control_problem` says whether a control can drive an input;
+- the seeded samples: :func:`sample_sources` (controls and process noise, a
+  :class:`ChunkedTable`), the drawers of the noise (:func:`noise_drawer`), of the sensors'
+  noise (:func:`gaussian_drawer`) and of the measurement losses (:func:`loss_drawer`), which
+  :class:`~uwcosim.master.measurement.SensorBank` uses;
+- :func:`noise_free_sources`: the noise sources a third-party vehicle has no inputs for.
+
+All randomness comes from :func:`~uwcosim.core.rng.stream`, one independent
+``numpy.random.Generator`` per named purpose derived from the run seed, so adding a sensor does
+not change another sensor's noise, and the same scenario and seed always give the same samples.
 
 Samples are drawn in chunks of :data:`CHUNK_STEPS` steps as the run goes (:class:`ChunkedTable`),
 so memory does not depend on the run's duration. Each stream is drawn in the same order as one
@@ -126,18 +135,27 @@ class ChunkedTable:
 
 
 def noise_drawer(rng: np.random.Generator, psd: ArrayLike, h: float) -> Drawer:
+    """Held white noise of power spectral density ``psd``: samples of variance ``psd / h``
+    (the PSD held over the step ``h``), one column per component."""
     scale = np.sqrt(np.asarray(psd, dtype=float) / h)
     return lambda k0, m: rng.standard_normal((m, scale.size)) * scale
 
 
 def gaussian_drawer(rng: np.random.Generator, sigma: ArrayLike) -> Drawer:
+    """Gaussian samples of standard deviations ``sigma``, one column per component."""
     sigma = np.asarray(sigma, dtype=float)
     return lambda k0, m: rng.standard_normal((m, sigma.size)) * sigma
 
 
 def loss_drawer(rng: np.random.Generator, n: int,
                 spec: BernoulliLoss | GilbertElliottLoss | None) -> Drawer:
-    """Chunks of :func:`loss_mask` ``(rng, n, spec)``, drawn as the run goes."""
+    """``True`` where the measurement is received, for the ``n`` samples of a run, in chunks
+    drawn as the run goes (no loss model: every sample is received).
+
+    Bernoulli: lost with probability ``p`` (seed 001 eq. 2). Gilbert-Elliott: a two-state
+    Markov chain (good/bad) with transition probabilities ``p_good_to_bad``,
+    ``p_bad_to_good`` and loss probabilities ``loss_good``, ``loss_bad`` per state (bursts).
+    """
     if spec is None:
         return lambda k0, m: np.ones(m, dtype=bool)
     if isinstance(spec, BernoulliLoss):
@@ -163,24 +181,6 @@ def loss_drawer(rng: np.random.Generator, n: int,
         return u >= np.where(bad, spec.loss_bad, spec.loss_good)
 
     return draw
-
-
-def white_noise(rng: np.random.Generator, n_steps: int, psd: ArrayLike, h: float) -> np.ndarray:
-    """Held white-noise samples ``[n_steps, n]`` of variance ``psd / h`` (PSD held over h)."""
-    psd = np.asarray(psd, dtype=float)
-    return rng.standard_normal((n_steps, psd.size)) * np.sqrt(psd / h)
-
-
-def loss_mask(
-    rng: np.random.Generator, n: int, spec: BernoulliLoss | GilbertElliottLoss | None
-) -> np.ndarray:
-    """``True`` where the measurement is received, for ``n`` samples.
-
-    Bernoulli: lost with probability ``p`` (seed 001 eq. 2). Gilbert-Elliott: a two-state
-    Markov chain (good/bad) with transition probabilities ``p_good_to_bad``,
-    ``p_bad_to_good`` and loss probabilities ``loss_good``, ``loss_bad`` per state (bursts).
-    """
-    return loss_drawer(rng, n, spec)(0, n)
 
 
 def control_problem(c: Control, var: ModelVariable) -> str | None:

@@ -29,7 +29,8 @@ from pathlib import Path, PurePosixPath
 from urllib.parse import unquote
 
 from uwcosim.core.errors import ScenarioError
-from uwcosim.fmi.varmap import UNITS, _canonical, fmu_unit
+from uwcosim.fmi.archive import open_description
+from uwcosim.fmi.varmap import UNITS, canonical_unit, fmu_unit
 from uwcosim.scenario.ssp.xml import (
     BASE_UNITS,
     FMU_TYPE,
@@ -123,7 +124,7 @@ class _Reader:
 
     # -- reading ----------------------------------------------------------------------------
     def read(self) -> FlatSystem:
-        from lxml import etree
+        from lxml import etree  # lazy: lxml and fmpy's SSP reader only when an SSP is read
 
         try:
             zf = zipfile.ZipFile(self.path)
@@ -170,7 +171,7 @@ class _Reader:
                           description=ssd.system.description or "")
 
     def _fmpy_read(self):
-        from fmpy.ssp.ssd import read_ssd
+        from fmpy.ssp.ssd import read_ssd  # lazy: as in read
 
         try:
             return read_ssd(str(self.path), validate=True)
@@ -221,9 +222,7 @@ class _Reader:
 
     def _walk(self, system, xml, path: tuple, zf) -> None:
         """Collect components, system connectors and connection edges of ``system``."""
-        from fmpy.ssp.ssd import Component
-
-        from uwcosim.fmi.adapter import read_description
+        from fmpy.ssp.ssd import Component  # lazy: as in read
 
         label = ".".join(path) or system.name
         self.systems[path] = (system, self._connectors(xml, f"system {label!r}", None))
@@ -241,7 +240,7 @@ class _Reader:
                 raise self.fail(f"component {hname!r}: type {typ!r} is not supported (only "
                                 f"FMUs, {FMU_TYPE!r})")
             fmu = self._extract(zf, el.source, hname)
-            md = read_description(fmu)
+            md = open_description(fmu)
             variables = {v.name: v for v in md.modelVariables}
             interface = INTERFACES[cx.get("implementation", "any")]
             if interface is None and md.coSimulation is None:
@@ -332,7 +331,7 @@ class _Reader:
                 if u.name == unit and base is not None:
                     return (tuple(int(getattr(base, k, 0) or 0) for k in BASE_UNITS),
                             float(base.factor), float(base.offset))
-        known = UNITS.get(_canonical(unit))
+        known = UNITS.get(canonical_unit(unit))
         if known is not None:
             exps = SI_EXPONENTS[known[1]]
             return tuple(exps.get(k, 0) for k in BASE_UNITS), known[0], 0.0

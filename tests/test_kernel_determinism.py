@@ -3,7 +3,7 @@
 With fast-math, LLVM's result depended on how a kernel was compiled: a kernel compiled afresh
 and the same kernel loaded from the on-disk cache differed in the last bits, so the same
 scenario and seed gave different logs on a fresh machine. The kernels are IEEE (their sums in
-a fixed order, see ``projection_kernels._sum2``); this test runs a short PFM-PSI, point-mass
+a fixed order, see :mod:`uwcosim.core.reductions`); this test runs a short PFM-PSI, point-mass
 and marginalized PF (``rbpf_kernels``) sequence in two processes sharing an initially empty
 ``NUMBA_CACHE_DIR``: the first compiles every kernel (cache misses only), the second loads
 them (cache hits only), and the estimates must be identical bytes. (Checked to fail with the

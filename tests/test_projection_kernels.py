@@ -108,8 +108,8 @@ def test_bayes_terms_match_numpy(terrain, var, inflation):
 @pytest.mark.parametrize("M", [54, 64, 18])
 def test_posterior_moments_and_negative_mass_match_numpy(M):
     """:func:`bayes_posterior`'s mass and moments (cross term summed by columns) and the
-    column-wise negative mass (``_neg_sum2``) against the numpy forms."""
-    from uwcosim.core.jit import _neg_sum2
+    column-wise negative mass (``neg_sum2``) against the numpy forms."""
+    from uwcosim.core.reductions import neg_sum2
 
     rng = np.random.default_rng(M)
     basis = _basis(K=4, M=M)
@@ -130,7 +130,7 @@ def test_posterior_moments_and_negative_mass_match_numpy(M):
     ref_cov = np.array([[w.sum(1) @ d0**2, d0 @ w @ d1], [d0 @ w @ d1, w.sum(0) @ d1**2]])
     np.testing.assert_allclose(mean, [mx, my], rtol=1e-14, atol=0)
     np.testing.assert_allclose(cov, ref_cov, rtol=1e-11, atol=1e-12 * np.abs(ref_cov).max())
-    assert _neg_sum2(values) == pytest.approx(np.minimum(values, 0).sum(), rel=1e-13, abs=1e-300)
+    assert neg_sum2(values) == pytest.approx(np.minimum(values, 0).sum(), rel=1e-13, abs=1e-300)
 
 
 def test_shift_decay_matches_reprojection_and_decay():

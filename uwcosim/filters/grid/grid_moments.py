@@ -8,16 +8,17 @@ import math
 
 import numpy as np
 
-from uwcosim.core.jit import _jit, _row_dot, _row_sum
+from uwcosim.core.jit import jit
+from uwcosim.core.reductions import row_dot, row_sum
 
 
-@_jit
+@jit
 def moments2(post, xs, ys):
     """Mean and covariance of the weights ``post`` on the grid ``xs x ys``."""
     return _moments2(post, xs, ys, False)
 
 
-@_jit
+@jit
 def _moments2(post, xs, ys, clip):
     """Mean and covariance of (signed, or clipped) weights on the tensor grid (eqs. 50-51)."""
     Mx, My = post.shape
@@ -50,7 +51,7 @@ def _moments2(post, xs, ys, clip):
     return mean, cov
 
 
-@_jit
+@jit
 def _floor_moments(post, xs, ys, mean, cov, floor0, floor1):
     """The checks of :meth:`ProjectionFilter._grid_moments` on the signed moments ``(mean,
     cov)``: moments of the clip when they are not valid, variances floored."""
@@ -71,16 +72,16 @@ def _floor_moments(post, xs, ys, mean, cov, floor0, floor1):
     return mean, cov
 
 
-@_jit
+@jit
 def grid_moments2(post, xs, ys, floor0, floor1):
     """:meth:`ProjectionFilter._grid_moments` for two gridded states."""
     mean, cov = _moments2(post, xs, ys, False)
     return _floor_moments(post, xs, ys, mean, cov, floor0, floor1)
 
 
-@_jit
+@jit
 def _marginals2(values):
-    """Row sums ``m0`` (fixed order of ``_row_sum``) and column sums ``m1`` (row after row) of
+    """Row sums ``m0`` (fixed order of ``row_sum``) and column sums ``m1`` (row after row) of
     a 2-D grid: the marginals :func:`_moments2_marginals` takes."""
     M0, M1 = values.shape
     m0 = np.empty(M0)
@@ -88,35 +89,35 @@ def _marginals2(values):
     for i in range(M0):
         for j in range(M1):
             m1[j] += values[i, j]
-        m0[i] = _row_sum(values, i, False)
+        m0[i] = row_sum(values, i, False)
     return m0, m1
 
 
-@_jit
+@jit
 def _moments2_marginals(post, m0, m1, xs, ys):
     """:func:`_moments2` (signed weights) from the marginals ``m0``, ``m1`` already summed."""
     total, mx, my, d0, d1 = _centred_axes(m0, m1, xs, ys)
     c01 = 0.0
     for i in range(post.shape[0]):
-        c01 += d0[i] * _row_dot(post, i, d1)
+        c01 += d0[i] * row_dot(post, i, d1)
     c01 /= total
     return _pack_moments(m0, m1, d0, d1, total, mx, my, c01)
 
 
-@_jit
+@jit
 def _moments2_cols(post, m0, m1, xs, ys):
     """:func:`_moments2_marginals` with the cross term summed by columns: ``t = d0' post``
     (row after row, an elementwise loop that vectorizes) then ``t . d1`` in the fixed order of
-    :func:`_row_dot` (the projection filter's moments; the same to round-off)."""
+    :func:`row_dot` (the projection filter's moments; the same to round-off)."""
     total, mx, my, d0, d1 = _centred_axes(m0, m1, xs, ys)
     t = np.zeros((1, post.shape[1]))
     for i in range(post.shape[0]):
         _axpy_row(t, d0[i], post, i)
-    c01 = _row_dot(t, 0, d1) / total
+    c01 = row_dot(t, 0, d1) / total
     return _pack_moments(m0, m1, d0, d1, total, mx, my, c01)
 
 
-@_jit
+@jit
 def _centred_axes(m0, m1, xs, ys):
     """The mass (in sums), the mean and the centred axes of marginals ``m0``, ``m1``."""
     total = m0.sum()
@@ -125,7 +126,7 @@ def _centred_axes(m0, m1, xs, ys):
     return total, mx, my, xs - mx, ys - my
 
 
-@_jit
+@jit
 def _pack_moments(m0, m1, d0, d1, total, mx, my, c01):
     """Mean and covariance from the marginals, the centred axes and the cross term."""
     mean = np.array([mx, my])
@@ -133,7 +134,7 @@ def _pack_moments(m0, m1, d0, d1, total, mx, my, c01):
     return mean, cov
 
 
-@_jit
+@jit
 def _axpy_row(t, a, x, i):
     """``t[0] += a x[i]`` (a function of its own: its loop vectorizes)."""
     for j in range(x.shape[1]):

@@ -14,7 +14,8 @@ import math
 
 import numpy as np
 
-from uwcosim.core.jit import _jit, _jit_fast, _max2, _row_sum, _sum2
+from uwcosim.core.jit import jit, jit_fast
+from uwcosim.core.reductions import max2, row_sum, sum2
 from uwcosim.filters.grid.grid_moments import _marginals2, _moments2, _moments2_marginals
 from uwcosim.filters.grid.projection_kernels import TWO_PI, _sym, terrain_depth
 
@@ -22,7 +23,7 @@ from uwcosim.filters.grid.projection_kernels import TWO_PI, _sym, terrain_depth
 # point mass
 
 
-@_jit
+@jit
 def _spline_rows(coords, n, size):
     """Rows of the cubic B-spline evaluation matrix of ``point_mass._spline_matrix``: indices
     (wrapped into ``size``) and weights (zero outside ``[0, n - 1]``)."""
@@ -53,7 +54,7 @@ def _spline_rows(coords, n, size):
     return idx, w
 
 
-@_jit
+@jit
 def spline_shift_2d(X, coords0, coords1, n0, n1):
     """Cubic B-spline of the prefiltered periodic coefficients ``X`` at the fractional grid
     coordinates ``coords0 x coords1`` (zero outside the old ``n0 x n1`` grid), clipped at 0.
@@ -80,7 +81,7 @@ def spline_shift_2d(X, coords0, coords1, n0, n1):
     return np.ascontiguousarray(outT.T)
 
 
-@_jit
+@jit
 def pm_grid_shift(values, ax0, ax1, mean, cov, d, D, span, unit0, unit1, buf):
     """First part of the point-mass prediction (drift independent of the grid).
 
@@ -119,7 +120,7 @@ def pm_grid_shift(values, ax0, ax1, mean, cov, d, D, span, unit0, unit1, buf):
     return new0, new1, c0, c1, mean2, _sym(cov2)
 
 
-@_jit
+@jit
 def pm_gauss_prefilter(X, L1, sp0, sp1, D, col, row):
     """``X *= exp(-w' D w / 2) * prefilter`` on a real-FFT spectrum (two dimensions, grid
     spacings ``sp0``, ``sp1``, padded length ``L1`` of the last axis): the diagonal factors
@@ -163,14 +164,14 @@ def pm_gauss_prefilter(X, L1, sp0, sp1, D, col, row):
             p0 *= q0
 
 
-@_jit
+@jit
 def _cscale(X, i, j, g):
     """``X[i, j] *= g`` for a real ``g``: two real products instead of a complex one."""
     v = X[i, j]
     X[i, j] = complex(v.real * g, v.imag * g)
 
 
-@_jit
+@jit
 def _scale2(a, s):
     """``a *= s`` (a 2-D array; the normalizations multiply by the reciprocal of the mass:
     a division per grid point costs about 4x a multiplication, and the results differ by at
@@ -180,18 +181,18 @@ def _scale2(a, s):
             a[i, j] *= s
 
 
-@_jit
+@jit
 def pm_finish(X, coords0, coords1, n0, n1, cell):
     """Spline at the shifted points (clipped at 0) and normalization: ``(values, mass)``;
     ``values`` are divided by the mass when it is finite and positive."""
     out = spline_shift_2d(X, coords0, coords1, n0, n1)
-    mass = _sum2(out, False) * cell
+    mass = sum2(out, False) * cell
     if math.isfinite(mass) and mass > 0.0:
         _scale2(out, 1.0 / mass)
     return out, mass
 
 
-@_jit_fast
+@jit_fast
 def terrain_exponent(xs, ys, C, tpar, ipar, z, var):
     """``ll - max(ll)`` of the terrain row, ``ll = -(h - z)^2 / (2 var)``, and ``max(ll)``
     (map as in :func:`bayes_terms`)."""
@@ -202,22 +203,22 @@ def terrain_exponent(xs, ys, C, tpar, ipar, z, var):
         for j in range(h.shape[1]):
             e = h[i, j] - z
             h[i, j] = (e * e) * c
-    tmax = _max2(h)
+    tmax = max2(h)
     h -= tmax
     return h, tmax
 
 
-@_jit
+@jit
 def pm_moments(values, xs, ys):
     """Mean and covariance of the grid density (as ``grid_moments.moments2``, which keeps one
     running sum per row: a chain of dependent additions): the row sums and the covariance
-    term in the fixed order of ``_row_sum`` / ``_row_dot`` (the point-mass update without
+    term in the fixed order of ``row_sum`` / ``row_dot`` (the point-mass update without
     grid rows, e.g. no terrain measurement)."""
     m0, m1 = _marginals2(values)
     return _moments2_marginals(values, m0, m1, xs, ys)
 
 
-@_jit
+@jit
 def grid_product_moments(values, lik, cell, xs, ys):
     """``post = values * lik`` normalized, its mass ``Z`` and moments (point-mass update).
 
@@ -232,7 +233,7 @@ def grid_product_moments(values, lik, cell, xs, ys):
             p = values[i, j] * lik[i, j]
             post[i, j] = p
             m1[j] += p
-        m0[i] = _row_sum(post, i, False)
+        m0[i] = row_sum(post, i, False)
     Z = m0.sum() * cell
     if math.isfinite(Z) and Z > 0.0:
         _scale2(post, 1.0 / Z)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uwcosim.core.jit import _jit
+from uwcosim.core.jit import jit
 
 TWO_PI = 2.0 * np.pi
 
@@ -56,7 +56,7 @@ def tables(K: int, M: int):
 # series <-> grid (two gridded states)
 
 
-@_jit
+@jit
 def to_grid2(m, Tq, Tx, scale):
     """:func:`to_grid2_into` a new ``M x M`` array."""
     M = Tx.shape[1]
@@ -65,7 +65,7 @@ def to_grid2(m, Tq, Tx, scale):
     return out
 
 
-@_jit
+@jit
 def to_grid2_into(m, Tq, Tx, scale, out):
     """Real values on the ``M x M`` grid of the Hermitian series ``m`` (``(2K+1, 2K+1)``),
     written into ``out``.
@@ -106,7 +106,7 @@ def to_grid2_into(m, Tq, Tx, scale, out):
             out[M - r, c] = (P[r, c] + Q[r, c]) * scale
 
 
-@_jit
+@jit
 def from_grid2(g, Tg, Tm, scale):
     """Coefficients ``<g, phi_q>`` (FFT quadrature) of real grid values ``g`` (``M x M``).
 
@@ -152,7 +152,7 @@ def from_grid2(g, Tg, Tm, scale):
     return m
 
 
-@_jit
+@jit
 def _fold_columns(Xe, Xo, k, X, j):
     """Row ``k`` of ``Xe`` / ``Xo``: sums / differences of the columns ``c`` and ``M - c`` of
     ``X[j]`` (the columns without mirror as they are). A function of its own: its loops

@@ -17,7 +17,8 @@ import math
 
 import numpy as np
 
-from uwcosim.core.jit import _jit, _sum2
+from uwcosim.core.jit import jit
+from uwcosim.core.reductions import sum2
 from uwcosim.filters.grid.grid_moments import _marginals2
 from uwcosim.filters.grid.projection_kernels import (
     _posterior_moments,
@@ -37,7 +38,7 @@ __all__ = ["assemble", "available_bits", "bayes_step", "kalman_increment", "kalm
 # PFM-PSI prediction
 
 
-@_jit
+@jit
 def predict_shift(m, lo, length, mean, cov, d, D, k_sigma, min_halfwidth):
     """``ProjectionFilter.predict`` for a drift independent of the gridded states.
 
@@ -54,7 +55,7 @@ def predict_shift(m, lo, length, mean, cov, d, D, k_sigma, min_halfwidth):
     return out, lo2, len2, mean2, _sym(cov2), mass
 
 
-@_jit
+@jit
 def available_bits(z, mask, use):
     """Bit ``r`` set when ``z[r]`` is finite and ``mask[r]`` and ``use[r]`` (``split_rows``)."""
     bits = 0
@@ -68,7 +69,7 @@ def available_bits(z, mask, use):
 # conditional Kalman filter of the velocities and (x, P)
 
 
-@_jit
+@jit
 def _chol_ok(S):
     """Whether the symmetric ``S`` (lower triangle) is positive definite (Cholesky)."""
     n = S.shape[0]
@@ -88,7 +89,7 @@ def _chol_ok(S):
     return True
 
 
-@_jit
+@jit
 def _solve(A, B):
     """``A^-1 B`` by Gaussian elimination with partial pivoting (as LAPACK gesv); ``ok``."""
     n = A.shape[0]
@@ -121,7 +122,7 @@ def _solve(A, B):
     return X, True
 
 
-@_jit
+@jit
 def _mm(A, B):
     """``A @ B`` by loops (tiny matrices: cheaper than a BLAS call)."""
     n, m, p = A.shape[0], A.shape[1], B.shape[1]
@@ -134,7 +135,7 @@ def _mm(A, B):
     return out
 
 
-@_jit
+@jit
 def _mv(A, x):
     out = np.zeros(A.shape[0])
     for i in range(A.shape[0]):
@@ -143,7 +144,7 @@ def _mv(A, x):
     return out
 
 
-@_jit
+@jit
 def _sandwich(F, r, k, S, Q, add_q):
     """``_sym(A S A' + B)`` with ``A = F[r][:, k]`` and ``B = Q[r][:, r]`` (no ``B`` unless
     ``add_q``): the arithmetic of ``_sym(_mm(_mm(A, S), A.T) + B)`` without the copies."""
@@ -172,7 +173,7 @@ def _sandwich(F, r, k, S, Q, add_q):
     return U
 
 
-@_jit
+@jit
 def kalman_increment(x, fx, F, Q, p, k, cov, phi, use_phi):
     """:meth:`ConditionalKalman.increment` after the model call: ``(d, D, Dk, mean, cov)``.
 
@@ -222,7 +223,7 @@ def kalman_increment(x, fx, F, Q, p, k, cov, phi, use_phi):
     return d, D, Dk, mean, new_cov
 
 
-@_jit
+@jit
 def kalman_update(mean, cov, H, R, c, y_meas, F):
     """Joseph-form update of the ``k`` block: ``(mean, cov, phi, nis, ok)``; ``ok`` False when
     ``S`` is not positive definite (the caller then runs the repairing numpy path)."""
@@ -243,7 +244,7 @@ def kalman_update(mean, cov, H, R, c, y_meas, F):
     return new_mean, new_cov, _mm(IKH, F), nis, True
 
 
-@_jit
+@jit
 def assemble(nx, p, k, mean_p, cov_p, mean_k, cov_k):
     """``(x, P, finite)`` of a partitioned filter (:func:`assemble_estimate`)."""
     x = np.zeros(nx)
@@ -260,7 +261,7 @@ def assemble(nx, p, k, mean_p, cov_p, mean_k, cov_k):
     return x, _sym(P), finite
 
 
-@_jit
+@jit
 def predict_step(x, fx, F, Q, p, k, kcov, phi, use_phi, m, lo, length, mean, cov, k_sigma,
                  min_halfwidth, kmean_out, Fkk_out):
     """One ``ProjectionFilter.predict`` (drift independent of the gridded states) after the
@@ -280,12 +281,12 @@ def predict_step(x, fx, F, Q, p, k, kcov, phi, use_phi, m, lo, length, mean, cov
     return m2, lo2, len2, mass, x2, P2, finite
 
 
-@_jit
+@jit
 def posterior_step(post, Tg, Tm, Tq, Tx, length, neg_limit, nx, p, k, mean, cov, kmean, kcov):
     """:func:`posterior_coefficients` and, when the series needs no repair, :func:`assemble`
     of ``(x, P)`` from the posterior moments: ``(m, values, neg, mass, x, P, finite)``."""
     cell = (length[0] / post.shape[0]) * (length[1] / post.shape[1])
-    m, values, neg, mass = posterior_coefficients(post, _sum2(post, False) * cell, Tg, Tm, Tq,
+    m, values, neg, mass = posterior_coefficients(post, sum2(post, False) * cell, Tg, Tm, Tq,
                                                   Tx, length, neg_limit)
     if math.isfinite(mass) and mass > 0.0:
         x, P, finite = assemble(nx, p, k, mean, cov, kmean, kcov)
@@ -294,7 +295,7 @@ def posterior_step(post, Tg, Tm, Tq, Tx, length, neg_limit, nx, p, k, mean, cov,
     return m, values, neg, mass, x, P, finite
 
 
-@_jit
+@jit
 def bayes_step(values, E, S, vmin, lo, length, shift, thr, refine, k_sigma, min_halfwidth, Tg,
                Tm, Tq, Tx, neg_limit, nx, p, k, kmean, kcov, H, R, c, z, rows, F, active,
                mean_out, cov_out):
@@ -334,7 +335,7 @@ def bayes_step(values, E, S, vmin, lo, length, shift, thr, refine, k_sigma, min_
     return 0, loglik, m, neg, x, P, finite, phi, nis
 
 
-@_jit
+@jit
 def _write_moments(mean, cov, km, kc, mean_out, cov_out, kmean, kcov):
     """Copy the gridded block's moments and the velocities' Kalman state into the caller's
     arrays (``km``, ``kc`` may be ``kmean``, ``kcov`` themselves)."""
@@ -344,7 +345,7 @@ def _write_moments(mean, cov, km, kc, mean_out, cov_out, kmean, kcov):
     kcov[:, :] = kc
 
 
-@_jit
+@jit
 def kalman_step(kmean, kcov, H, R, c, z, rows, F, active):
     """:func:`kalman_update` of the velocities with the rows ``rows`` of ``z`` when ``active``
     (else the block unchanged): ``(mean, cov, phi, nis, ok)``."""
@@ -356,7 +357,7 @@ def kalman_step(kmean, kcov, H, R, c, z, rows, F, active):
     return kalman_update(kmean, kcov, H, R, c, zk, F)
 
 
-@_jit
+@jit
 def prior_step(m, Tq, Tx, lo, length, neg_limit, nx, p, k, kmean, kcov, H, R, c, z, rows, F,
                active, mean_out, cov_out):
     """``ProjectionFilter.update`` without a grid measurement row: the posterior is the prior.

@@ -24,7 +24,7 @@ All are reachable from this module (the filters call ``projection_kernels.NAME``
 
 Every kernel computes what the numpy code computes, in another summation order: results agree
 to round-off (``tests/test_projection_kernels.py`` runs both paths). The arithmetic is IEEE
-(no fast-math) and every sum has its order written in the source (:func:`_row_sum`): a kernel
+(no fast-math) and every sum has its order written in the source (:func:`row_sum`): a kernel
 compiled afresh and the same kernel loaded from Numba's cache give the same bits
 (``tests/test_kernel_determinism.py``). Exponentials of whole
 grids stay in numpy (its SIMD ``exp`` is several times faster than a compiled scalar loop).
@@ -41,19 +41,8 @@ import math
 
 import numpy as np
 
-from uwcosim.core.jit import (
-    ENABLED,
-    _col_max,
-    _col_min_max,
-    _jit,
-    _jit_fast,
-    _max1,
-    _max2,
-    _min1,
-    _neg_sum2,
-    _row_sum,
-    interrupted,
-)
+from uwcosim.core.jit import ENABLED, interrupted, jit, jit_fast
+from uwcosim.core.reductions import col_max, col_min_max, max1, max2, min1, neg_sum2, row_sum
 from uwcosim.filters.grid.grid_moments import (
     _floor_moments,
     _moments2,
@@ -73,7 +62,7 @@ from uwcosim.filters.grid.projection_grid import (  # noqa: F401  (re-exported)
 # terrain
 
 
-@_jit
+@jit
 def _spline_weights(s, n):
     """Cell index and the 4 cubic B-spline weights at positions ``s`` (clamped as the map)."""
     N = s.size
@@ -93,7 +82,7 @@ def _spline_weights(s, n):
     return idx, w
 
 
-@_jit
+@jit
 def terrain_depth(xs, ys, C, x0, y0, dx, dy, nx, ny, pad):
     """``h[i, j] = h_d(xs[i], ys[j])``: the map's cubic B-spline (coefficients ``C[y, x]``,
     ``pad`` padding nodes) on a tensor grid, as :meth:`TerrainGrid.depth`: first along ``y``
@@ -124,7 +113,7 @@ def terrain_depth(xs, ys, C, x0, y0, dx, dy, nx, ny, pad):
 # PFM-PSI update
 
 
-@_jit
+@jit
 def grid_axes(lo, length, M):
     """``SpectralBasis.axes()``: ``lo + L n / M``, ``n = 0..M-1``, per dimension."""
     xs = np.empty(M)
@@ -135,7 +124,7 @@ def grid_axes(lo, length, M):
     return xs, ys
 
 
-@_jit_fast
+@jit_fast
 def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation, values, W, V):
     """Prior values, terrain log-likelihood terms and the prior's negative mass on the box
     ``(lo, length)`` (``M = Tx.shape[1]`` points per dimension).
@@ -159,7 +148,7 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation, values,
     scale = 1.0 / math.sqrt(length[0] * length[1])
     cell = (length[0] / M) * (length[1] / M)
     to_grid2_into(m, Tq, Tx, scale, values)
-    neg = _neg_sum2(values)
+    neg = neg_sum2(values)
     xs, ys = grid_axes(lo, length, M)
     h = terrain_depth(xs, ys, C, tpar[0], tpar[1], tpar[2], tpar[3], ipar[0], ipar[1],
                       ipar[2])
@@ -175,14 +164,14 @@ def bayes_terms(m, Tq, Tx, lo, length, C, tpar, ipar, z, var, inflation, values,
                 e = (h[i, j] - z) * s
                 W[i, j] = -0.5 * (e * e)
         V[:] = s
-        tmax = _max2(W)
+        tmax = max2(W)
     for i in range(M):
         for j in range(M):
             W[i, j] -= tmax
     return -neg * cell, tmax, vmin
 
 
-@_jit
+@jit
 def _inflated_terms(h, z, var, rx, ry, W, V):
     """:func:`bayes_terms`' ``V`` with resolution inflation, then ``S`` (into ``V``) and ``W``;
     returns ``(tmax, vmin)``. The extremes are kept per column (elementwise loops, which
@@ -203,9 +192,9 @@ def _inflated_terms(h, z, var, rx, ry, W, V):
             g = f * (h[i1, j] - h[i0, j])
             q = 2.0 * (h[i, j1] - h[i, j0])
             V[i, j] = (g * g * rx + var) + q * q * ry
-        _col_min_max(vlo, vhi, V, i)
-    vmin = _min1(vlo)
-    single = vmin >= 1e-30 and _max1(vhi) <= 1e30
+        col_min_max(vlo, vhi, V, i)
+    vmin = min1(vlo)
+    single = vmin >= 1e-30 and max1(vhi) <= 1e30
     for i in range(M):
         if single:
             _inv_sqrt_row_single(h, z, W, V, i)
@@ -215,11 +204,11 @@ def _inflated_terms(h, z, var, rx, ry, W, V):
                 e = (h[i, j] - z) * s
                 W[i, j] = -0.5 * (e * e)
                 V[i, j] = s
-        _col_max(whi, W, i)
-    return _max1(whi), vmin
+        col_max(whi, W, i)
+    return max1(whi), vmin
 
 
-@_jit
+@jit
 def _inv_sqrt_row_single(h, z, W, V, i):
     """Row ``i`` of :func:`_inflated_terms`: ``S = 1 / sqrt(V)`` in single precision refined by
     two Newton steps (into ``V``), ``W = -(S (h - z))^2 / 2``."""
@@ -233,16 +222,16 @@ def _inv_sqrt_row_single(h, z, W, V, i):
         V[i, j] = s  # V becomes S = 1 / sqrt(V)
 
 
-@_jit_fast
+@jit_fast
 def prior_values(m, Tq, Tx, length):
     """Grid values of the prior series and their negative mass (no grid measurement rows)."""
     M = Tx.shape[1]
     values = to_grid2(m, Tq, Tx, 1.0 / math.sqrt(length[0] * length[1]))
-    neg = _neg_sum2(values)
+    neg = neg_sum2(values)
     return values, -neg * (length[0] / M) * (length[1] / M)
 
 
-@_jit
+@jit
 def bayes_posterior(values, E, S, vmin, lo, length):
     """``post = values E sqrt(vmin) S`` (``E = exp(W - tmax)``, ``S = 1 / sqrt(V)`` of
     :func:`bayes_terms`, or ones with ``vmin = 1``), its mass and moments.
@@ -262,15 +251,15 @@ def bayes_posterior(values, E, S, vmin, lo, length):
             p = values[i, j] * (E[i, j] * (svm * S[i, j]))
             post[i, j] = p
             m1[j] += p
-        m0[i] = _row_sum(post, i, False)
+        m0[i] = row_sum(post, i, False)
     Z, mean, cov, status = _posterior_moments(post, m0, m1, lo, length)
     return post, Z, mean, cov, status
 
 
-@_jit
+@jit
 def _posterior_moments(post, m0, m1, lo, length):
     """Mass and moments of :func:`bayes_posterior` from the marginal sums ``m0`` (rows, in
-    :func:`_row_sum` order) and ``m1`` (columns, added row after row) of ``post``; clips
+    :func:`row_sum` order) and ``m1`` (columns, added row after row) of ``post``; clips
     ``post`` in place when its mass is not positive. Returns ``(Z, mean, cov, status)``."""
     M = post.shape[0]
     cell = (length[0] / M) * (length[1] / M)
@@ -298,7 +287,7 @@ def _posterior_moments(post, m0, m1, lo, length):
     return Z, mean, cov, status
 
 
-@_jit_fast
+@jit_fast
 def posterior_coefficients(post, Z, Tg, Tm, Tq, Tx, length, neg_limit):
     """``m = <post, phi> / Z`` (eqs. 45, 47; ``Z`` the mass of ``post``), its grid values and
     negative mass.
@@ -312,14 +301,14 @@ def posterior_coefficients(post, Z, Tg, Tm, Tq, Tx, length, neg_limit):
     m = from_grid2(post, Tg, Tm, sv / M**2)
     m /= Z
     values = to_grid2(m, Tq, Tx, 1.0 / sv)
-    neg = -_neg_sum2(values) * cell
+    neg = -neg_sum2(values) * cell
     mass = np.nan
     if neg <= neg_limit:
         mass = hermitian_normalize(m, sv)
     return m, values, neg, mass
 
 
-@_jit
+@jit
 def hermitian_normalize(m, sqrt_volume):
     """``m = (m + conj(m_-q)) / 2`` in place; divide by the mass when it is finite and > 0.
 
@@ -337,7 +326,7 @@ def hermitian_normalize(m, sqrt_volume):
     return mass
 
 
-@_jit
+@jit
 def _sym(A):
     n = A.shape[0]
     out = np.empty((n, n))
@@ -347,7 +336,7 @@ def _sym(A):
     return out
 
 
-@_jit
+@jit
 def box(mean, cov, k_sigma, min_halfwidth):
     """``ProjectionFilter._box``: ``(lo, length)`` of ``mean -+ max(k_sigma sigma, floor)``."""
     n = mean.size

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from uwcosim.core.jit import _jit
+from uwcosim.core.jit import jit
 from uwcosim.filters.grid.spectral import TWO_PI
 
 # exponents up to this size (|log| of every separated decay factor and of their products)
@@ -29,7 +29,7 @@ from uwcosim.filters.grid.spectral import TWO_PI
 _SEPARABLE_LIMIT = 700.0
 
 
-@_jit
+@jit
 def _sinc(d):
     """``sin(d) / d`` for ``|d| < 0.5`` by its Taylor series (Horner in ``d^2``; the first
     omitted term is below ``5e-17``)."""
@@ -38,7 +38,7 @@ def _sinc(d):
         1.0 - x / 110.0 * (1.0 - x / 156.0 * (1.0 - x / 210.0))))))
 
 
-@_jit
+@jit
 def _powers(K, angle, out_c, out_s):
     """``cos(q angle)``, ``sin(q angle)`` for ``q = 0..K`` into ``out_c[K + q]``,
     ``out_s[K + q]`` and the mirrored ``-q`` (``out_c[K - q]``, ``-out_s[K + q]``): by the
@@ -54,7 +54,7 @@ def _powers(K, angle, out_c, out_s):
         c, s = c * c1 - s * s1, s * c1 + c * s1
 
 
-@_jit
+@jit
 def _transfer(K, lo, length, lo2, length2, S, full, ph):
     """One dimension of :func:`~uwcosim.filters.grid.spectral.transfer_matrix` as
     ``T[q', q] = l[q'] S[q', q] r[q]``: the real ``S`` and the phases ``l = ph[0] + i ph[1]``,
@@ -111,7 +111,7 @@ def _transfer(K, lo, length, lo2, length2, S, full, ph):
             S[q] = row
 
 
-@_jit
+@jit
 def _decay_rows(K, length2, D, f0r, f0i, f1r, f1i, cross):
     """Multiply the factors ``f0`` (rows ``q0 = 0..K``) and ``f1`` (columns ``q1 = -K..K``) by
     the separable parts of ``exp(-w' D w / 2)`` and put the rest in ``cross[q0, K + q1]``
@@ -163,7 +163,7 @@ def _decay_rows(K, length2, D, f0r, f0i, f1r, f1i, cross):
             row[K - t] = row[K - t + 1] * rinv
 
 
-@_jit
+@jit
 def _shift_decay(m, lo, length, lo2, length2, D, decay, sv, normalize):
     """:func:`shift_decay` and the mass ``sv * out[K, K].real`` of the result (``sv`` the
     square root of the new box's volume). When ``normalize`` and the mass is finite and
@@ -223,7 +223,7 @@ def _shift_decay(m, lo, length, lo2, length2, D, decay, sv, normalize):
     return out, mass
 
 
-@_jit
+@jit
 def shift_decay(m, lo, length, lo2, length2, D, decay):
     """Re-projection of ``m`` from the box ``(lo, length)`` onto ``(lo2, length2)`` (exact
     integrals, :func:`~uwcosim.filters.grid.spectral.reproject`), times ``exp(-w' D w / 2)``

@@ -43,7 +43,7 @@ def test_cell_clamps_to_the_grid():
 
 def test_compiled_weights_equal_the_definition():
     s = np.random.default_rng(1).uniform(-2.0, 12.0, 400)
-    idx, w = pk._spline_weights(s, 11)
+    idx, w = bspline.cell_weights(s, 11)
     i, f = bspline.cell(s, 11)
     np.testing.assert_array_equal(idx, i)
     np.testing.assert_allclose(w, bspline.basis(f)[0].T, rtol=0, atol=1e-12)

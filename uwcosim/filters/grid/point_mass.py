@@ -31,6 +31,7 @@ import scipy.fft as sfft
 from pydantic import Field, StrictBool, StrictFloat, StrictInt, StrictStr
 from scipy import ndimage, sparse
 
+from uwcosim.core import bspline
 from uwcosim.core.errors import FilterDivergence
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.grid import projection_kernels as pk  # imports point_mass_kernels
@@ -57,8 +58,6 @@ from uwcosim.filters.grid import point_mass_kernels as pmk  # after projection_k
 
 _TAPS = np.arange(-1, 3)
 _POWERS = np.arange(4.0)
-# cubic B-spline weights from the powers of the fraction: w_a(f) = sum_i f^i _BSPLINE[i, a]
-_BSPLINE = np.array([[1, 4, 1, 0], [-3, 0, 3, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], float) / 6.0
 _SPLINE_MATRICES: dict[tuple[int, int], sparse.csr_matrix] = {}
 SPLINE_PAD = 7  # zero padding for the spline prefilter (its impulse response: 0.27^|k|)
 
@@ -121,7 +120,7 @@ def _spline_matrix(coords: np.ndarray, n: int, size: int) -> sparse.csr_matrix:
         c = np.where(inside, c, 0.0)
         i = np.floor(c).astype(np.intp)
     f = c - i
-    w = (f[:, None] ** _POWERS) @ _BSPLINE  # the 4 cubic B-spline weights per row
+    w = (f[:, None] ** _POWERS) @ bspline.MONOMIAL  # the 4 cubic B-spline weights per row
     if inside is not None:
         w *= inside[:, None]
     idx = i[:, None] + _TAPS

@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from uwcosim.core import bspline
 from uwcosim.core.jit import jit, jit_fast
 from uwcosim.core.reductions import max2, row_sum, sum2
 from uwcosim.filters.grid.grid_moments import _marginals2, _moments2, _moments2_marginals
@@ -26,7 +27,8 @@ from uwcosim.filters.grid.projection_kernels import TWO_PI, _sym, terrain_depth
 @jit
 def _spline_rows(coords, n, size):
     """Rows of the cubic B-spline evaluation matrix of ``point_mass._spline_matrix``: indices
-    (wrapped into ``size``) and weights (zero outside ``[0, n - 1]``)."""
+    (wrapped into ``size``) and weights (:func:`uwcosim.core.bspline.weights`; zero outside
+    ``[0, n - 1]``)."""
     N = coords.size
     idx = np.empty((N, 4), np.int64)
     w = np.empty((N, 4))
@@ -36,14 +38,12 @@ def _spline_rows(coords, n, size):
         if not inside:
             c = 0.0
         i = int(math.floor(c))
-        f = c - i
-        f2 = f * f
-        f3 = f2 * f
         s = 1.0 if inside else 0.0
-        w[a, 0] = s * (1.0 - 3.0 * f + 3.0 * f2 - f3) / 6.0
-        w[a, 1] = s * (4.0 - 6.0 * f2 + 3.0 * f3) / 6.0
-        w[a, 2] = s * (1.0 + 3.0 * f + 3.0 * f2 - 3.0 * f3) / 6.0
-        w[a, 3] = s * f3 / 6.0
+        w0, w1, w2, w3 = bspline.weights(c - i)
+        w[a, 0] = s * w0
+        w[a, 1] = s * w1
+        w[a, 2] = s * w2
+        w[a, 3] = s * w3
         for t in range(4):  # (i - 1 + t) % size, i - 1 + t in [-1, n + 1] (and n < size)
             v = i - 1 + t
             while v < 0:

@@ -5,7 +5,8 @@ step is the overhead of a few hundred small calls. These kernels fuse the steps 
 case (two gridded states, a terrain-depth measurement, a drift independent of the position:
 the TAN model of seed 000) into a handful of compiled calls:
 
-- :func:`terrain_depth`: the bathymetry B-spline on a tensor grid (separable, 4 + 4 taps);
+- :func:`terrain_depth`: the bathymetry B-spline on a tensor grid (separable, 4 + 4 taps; its
+  weights :func:`uwcosim.core.bspline.cell_weights`);
 - :func:`to_grid2` / :func:`from_grid2` (in :mod:`uwcosim.filters.grid.projection_grid`,
   re-exported here): the series <-> grid quadratures of
   :mod:`uwcosim.filters.projection_ops` with the Hermitian symmetry of the series and the
@@ -41,6 +42,7 @@ import math
 
 import numpy as np
 
+from uwcosim.core import bspline
 from uwcosim.core.jit import ENABLED, interrupted, jit, jit_fast
 from uwcosim.core.reductions import col_max, col_min_max, max1, max2, min1, neg_sum2, row_sum
 from uwcosim.filters.grid.grid_moments import (
@@ -63,33 +65,13 @@ from uwcosim.filters.grid.projection_grid import (  # noqa: F401  (re-exported)
 
 
 @jit
-def _spline_weights(s, n):
-    """Cell index and the 4 cubic B-spline weights at positions ``s`` (clamped as the map)."""
-    N = s.size
-    idx = np.empty(N, np.int64)
-    w = np.empty((N, 4))
-    for a in range(N):
-        v = min(max(s[a], 0.0), n - 1.0)
-        i = min(int(v), n - 2)
-        f = v - i
-        f2 = f * f
-        f3 = f2 * f
-        idx[a] = i
-        w[a, 0] = (1.0 - 3.0 * f + 3.0 * f2 - f3) / 6.0
-        w[a, 1] = (4.0 - 6.0 * f2 + 3.0 * f3) / 6.0
-        w[a, 2] = (1.0 + 3.0 * f + 3.0 * f2 - 3.0 * f3) / 6.0
-        w[a, 3] = f3 / 6.0
-    return idx, w
-
-
-@jit
 def terrain_depth(xs, ys, C, x0, y0, dx, dy, nx, ny, pad):
     """``h[i, j] = h_d(xs[i], ys[j])``: the map's cubic B-spline (coefficients ``C[y, x]``,
     ``pad`` padding nodes) on a tensor grid, as :meth:`TerrainGrid.depth`: first along ``y``
     at the map's columns of the support (``Csub' Wy'``, one BLAS product with the banded
     weight matrix), then the 4 taps along ``x`` per grid row (a loop that vectorizes)."""
-    iu, wu = _spline_weights((xs - x0) / dx, nx)
-    iv, wv = _spline_weights((ys - y0) / dy, ny)
+    iu, wu = bspline.cell_weights((xs - x0) / dx, nx)
+    iv, wv = bspline.cell_weights((ys - y0) / dy, ny)
     c0 = iu.min() - 1 + pad
     c1 = iu.max() + 3 + pad
     r0 = iv.min() - 1 + pad

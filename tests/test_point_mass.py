@@ -6,14 +6,11 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from tests.grid_reference import gaussian_convolve
 from uwcosim.core.errors import ScenarioError
+from uwcosim.evaluation.distance import hellinger
 from uwcosim.filters.base import ESTIMATORS
-from uwcosim.filters.grid.point_mass import (
-    PointMassFilter,
-    gaussian_convolve,
-    hellinger,
-    shift_blur,
-)
+from uwcosim.filters.grid.point_mass import PointMassFilter, shift_blur
 from uwcosim.models.casadi_model import CasadiModel
 from uwcosim.models.tan import tan_model
 

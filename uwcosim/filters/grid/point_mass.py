@@ -62,39 +62,6 @@ _SPLINE_MATRICES: dict[tuple[int, int], sparse.csr_matrix] = {}
 SPLINE_PAD = 7  # zero padding for the spline prefilter (its impulse response: 0.27^|k|)
 
 
-def hellinger(p: np.ndarray, q: np.ndarray) -> float:
-    """Hellinger distance of two densities sampled on the same uniform grid.
-
-    ``H^2 = 1 - sum sqrt(p q) / sqrt(sum p sum q)`` (negative values clipped), in [0, 1].
-    """
-    p = np.maximum(np.asarray(p, float), 0.0)
-    q = np.maximum(np.asarray(q, float), 0.0)
-    bc = np.sum(np.sqrt(p * q)) / np.sqrt(p.sum() * q.sum())
-    return float(np.sqrt(max(0.0, 1.0 - bc)))
-
-
-def gaussian_convolve(values: np.ndarray, spacing, D: np.ndarray) -> np.ndarray:
-    """Linear convolution of grid values with ``N(0, D)`` by FFT (zero-padded, same shape)."""
-    n = values.ndim
-    D = np.asarray(D, dtype=float)
-    sig = np.sqrt(np.maximum(np.diag(D), 0.0))
-    shape = tuple(
-        sfft.next_fast_len(values.shape[d] + int(min(np.ceil(7.0 * sig[d] / spacing[d]) + 1,
-                                                     values.shape[d])), real=True)
-        for d in range(n)
-    )
-    X = sfft.rfftn(values, s=shape)
-    oms = [o / spacing[d] for d, o in enumerate(_unit_frequencies(shape))]
-    quad = 0.0
-    for r in range(n):
-        quad = quad + (0.5 * D[r, r]) * oms[r] * oms[r]
-        for s in range(r + 1, n):
-            quad = quad + D[r, s] * oms[r] * oms[s]
-    X *= np.exp(-quad)
-    out = sfft.irfftn(X, s=shape)
-    return out[tuple(slice(0, values.shape[d]) for d in range(n))]
-
-
 @lru_cache(maxsize=32)
 def _inverse_bspline_symbol(shape: tuple[int, ...]) -> np.ndarray:
     """``1 / prod_d (4 + 2 cos w_d) / 6``: the cubic B-spline prefilter on a real FFT grid."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft as sfft
 
-from uwcosim.filters.grid.point_mass_fft import _unit_frequencies as unit_frequencies
+from uwcosim.filters.point_mass.fft import unit_frequencies
 
 
 def gaussian_convolve(values: np.ndarray, spacing, D: np.ndarray) -> np.ndarray:

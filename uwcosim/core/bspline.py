@@ -10,13 +10,12 @@ of the spline in Python or Numba evaluates that table, and each is checked again
 :func:`basis`:
 
 - :func:`weights` / :func:`cell_weights`, the compiled forms (Numba, :mod:`uwcosim.core.jit`):
-  the terrain depth on a grid (``terrain_depth`` of
-  :mod:`uwcosim.filters.grid.projection_kernels`) and the point mass's spline shift
-  (:mod:`uwcosim.filters.grid.point_mass_kernels`; ``tests/test_bspline.py``,
-  ``tests/test_projection_kernels.py``);
+  the terrain depth on a grid of :mod:`uwcosim.filters.grid.likelihood` (``terrain_depth``)
+  and the point mass's spline shift (:mod:`uwcosim.filters.point_mass.prediction_kernels`;
+  ``tests/test_bspline.py``, ``tests/test_projection_kernels.py``);
 - the tabulated per-cell polynomials of :class:`uwcosim.models.tan.FastTerrain`, the
   tensor-grid evaluation of :class:`uwcosim.filters.grid.likelihood.TerrainGrid` and the point
-  mass's sparse spline matrices (:mod:`uwcosim.filters.grid.point_mass`) multiply by
+  mass's sparse spline matrices (:mod:`uwcosim.filters.point_mass.prediction`) multiply by
   :data:`MONOMIAL` (``tests/test_bspline.py``);
 - ``basis`` / ``cell`` in ``uwcosim/fmu/templates/uwc_map.c``, the DepthSounder FMU's kernel
   (``tests/test_bathymetry_kernel.py``: the compiled C against

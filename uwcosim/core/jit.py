@@ -16,6 +16,14 @@ A kernel calls another kernel by its module-level name (``from m import kernel``
 ``m.kernel``): the binder replaces the first-call stubs by the compiled kernels in every module
 that registers a kernel. Python code calls kernels through their module (``m.kernel(...)``),
 so that it reaches the compiled kernel once bound.
+
+Argument bundles: kernels take groups of arrays as NamedTuples of named fields (e.g.
+:class:`~uwcosim.filters.grid.conditional_kernels.KalmanBlock`), unpack a bundle at their entry
+into the names of its fields (``p, k, x, P, F = kal``, free in compiled code) and pass bundles
+on to the kernels they call as they received them. A caller may pass the NamedTuple itself or
+the plain tuple of its fields (both are typed and unpacked alike); the per-step callers pass
+plain tuples: Numba's dispatcher types an exact tuple in C in about 0.05 us, a NamedTuple
+(its class and field names fingerprinted on every call) in about 0.5-0.7 us per argument.
 """
 
 from __future__ import annotations

@@ -9,8 +9,9 @@ kernel was compiled (:mod:`uwcosim.core.jit`), and the eight independent chains 
 without fast-math. Extremes are exact in any order; they keep several running extremes (or
 one per column) for the same reason.
 
-Used by the grid filters' kernels (:mod:`uwcosim.filters.grid`) and the marginalized particle
-filter's (:mod:`uwcosim.filters.rbpf_kernels`).
+Used by the grid filters' kernels (:mod:`uwcosim.filters.grid`, :mod:`uwcosim.filters.projection`,
+:mod:`uwcosim.filters.point_mass`) and the marginalized particle filter's
+(:mod:`uwcosim.filters.rbpf_kernels`).
 """
 
 from __future__ import annotations

@@ -12,9 +12,9 @@ truncated series, the measurement gate and the regrowth of a box that holds no p
    (eq. 50 with ``Psi = sqrt(L)/K IFFT(x_n)`` is that quadrature), variances floored at the grid
    resolution (:func:`grid_posterior_moments`).
 3. *Negative lobes*: the mass ``integral of max(-p, 0)`` of the truncated posterior is reported
-   as ``neg_mass`` (and ``neg_mass_prior``). ``positivity="auto"`` (default) keeps the signed
-   series as the paper does (the lobes carry the truncation error with nearly zero net mass and
-   cancel in the moments) while ``neg_mass <= neg_limit``; above it the grid values are
+   as ``neg_mass`` (and ``neg_mass_prior``). ``positivity="auto"`` keeps the signed series as
+   the paper does (the lobes carry the truncation error with nearly zero net mass and cancel in
+   the moments) while ``neg_mass <= neg_limit``; above it the grid values are
    thresholded (``max(p - a, 0)``, ``a`` the deepest lobe), renormalized and re-projected
    (``positivity_applied`` = 1), and with ``moment_match`` the series gets the grid posterior's
    mean and covariance back (:meth:`BayesUpdate.match_moments`). ``"clip"`` (clip and

@@ -15,7 +15,8 @@ sums over grids that fast-math used to vectorize are written out in a fixed orde
 A kernel calls another kernel by its module-level name (``from m import kernel``, or
 ``m.kernel``): the binder replaces the first-call stubs by the compiled kernels in every module
 that registers a kernel. Python code calls kernels through their module (``m.kernel(...)``),
-so that it reaches the compiled kernel once bound.
+so that it reaches the compiled kernel once bound; code that keeps a kernel as a value keeps
+:func:`bound` of it (a stub kept would add a Python call to every call).
 
 Argument bundles: kernels take groups of arrays as NamedTuples of named fields (e.g.
 :class:`~uwcosim.filters.grid.conditional_kernels.KalmanBlock`), unpack a bundle at their entry
@@ -69,6 +70,16 @@ def _register(fn, fastmath):
 
     _PLAIN.append((fn, fastmath, first_call))
     return first_call
+
+
+def bound(kernel):
+    """The compiled form of the registered ``kernel`` (its first-call stub or itself), binding
+    every registered kernel first if none was called yet (imports Numba: call it only when
+    :data:`ENABLED`)."""
+    if _PLAIN:
+        _compile_all()
+    fn = getattr(kernel, "__wrapped__", kernel)
+    return fn.__globals__[fn.__name__]
 
 
 def interrupted(exc: BaseException) -> bool:

@@ -35,7 +35,7 @@ import math
 import casadi as ca
 import numpy as np
 
-from uwcosim.core.jit import ENABLED, jit
+from uwcosim.core.jit import ENABLED, bound, jit
 
 
 class FastFunction:
@@ -123,8 +123,8 @@ class Partition:
                     "functions), not a numpy fast path"
                 )
         self.model = model
-        self._available = (available_bits if (ENABLED if compiled is None else compiled)
-                           else available_bits_numpy)
+        use_kernel = ENABLED if compiled is None else (compiled and ENABLED)
+        self._available = bound(available_bits) if use_kernel else available_bits_numpy
         nx, nu = model.nx, model.nu
         names = tuple(model.measurement_names)
         if measurements is None:

@@ -32,7 +32,7 @@ def _record(scenario: str, steps: int):
     import numpy as np
 
     from uwcosim.api import run_scenario
-    from uwcosim.filters.grid.projection import ProjectionFilter
+    from uwcosim.filters.projection.filter import ProjectionFilter
     from uwcosim.scenario import load_scenario
 
     rec: dict = {"calls": []}
@@ -75,7 +75,7 @@ def main(argv=None) -> int:
 
     import numpy as np
 
-    from uwcosim.filters.grid.projection import ProjectionFilter
+    from uwcosim.filters.projection.filter import ProjectionFilter
 
     rec = _record(args.scenario, args.steps)
     calls = [c for c in rec["calls"] if len(c) == 4]

@@ -6,8 +6,7 @@
 Each compiled kernel, FFT and Python method of the step is wrapped in a timer (about 0.3 us of
 overhead per wrapped call, so the parts add up to a little more than the unwrapped step); the
 table gives the median per step over the last of ``--repeats`` runs. The FFTs are timed
-wherever this tree calls them (``_FFTPlan.forward``/``inverse``, else ``scipy.fft.rfft2`` /
-``irfft2``), so that the script also runs on older trees for a before/after comparison.
+where this tree calls them (``FFTPlan.forward``/``inverse``).
 ``--profile``: cProfile of one run instead (sorted by own time).
 """
 
@@ -22,8 +21,15 @@ import time
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-KERNELS = ("pm_grid_shift", "pm_gauss_prefilter", "pm_finish", "terrain_exponent",
-           "grid_product_moments", "kalman_increment", "kalman_update", "assemble")
+# (module, kernel): the compiled kernels of the point mass's step, called through their module
+KERNELS = (("uwcosim.filters.point_mass.prediction_kernels", "grid_shift"),
+           ("uwcosim.filters.point_mass.prediction_kernels", "gauss_prefilter"),
+           ("uwcosim.filters.point_mass.prediction_kernels", "finish"),
+           ("uwcosim.filters.point_mass.bayes_kernels", "terrain_exponent"),
+           ("uwcosim.filters.point_mass.bayes_kernels", "grid_product_moments"),
+           ("uwcosim.filters.grid.conditional_kernels", "kalman_increment"),
+           ("uwcosim.filters.grid.conditional_kernels", "kalman_update"),
+           ("uwcosim.filters.grid.conditional_kernels", "assemble"))
 
 
 def main(argv=None) -> int:
@@ -33,14 +39,14 @@ def main(argv=None) -> int:
     ap.add_argument("--profile", action="store_true", help="cProfile instead of timers")
     args = ap.parse_args(argv)
 
+    import importlib
+
     import numpy as np
-    import scipy.fft as sfft
 
     import uwcosim.filters  # noqa: F401  (registers the estimators)
     from uwcosim.filters.base import ESTIMATORS
     from uwcosim.filters.grid import conditional
-    from uwcosim.filters.grid import point_mass as pm
-    from uwcosim.filters.grid import projection_kernels as pk
+    from uwcosim.filters.point_mass import fft, prediction_kernels
     from uwcosim.models.tan import tan_model
     from uwcosim.models.terrain import synthetic_bathymetry
     from uwcosim.models.trajectory import simulate, wandering_heading
@@ -89,17 +95,12 @@ def main(argv=None) -> int:
 
         setattr(owner, name, timed)
 
-    for name in KERNELS:
-        if hasattr(pk, name):
-            wrap(pk, name)
-    if hasattr(pm, "_FFTPlan"):
-        wrap(pm._FFTPlan, "forward", "FFT forward")
-        wrap(pm._FFTPlan, "inverse", "FFT inverse")
-    else:
-        wrap(sfft, "rfft2", "FFT forward")
-        wrap(sfft, "irfft2", "FFT inverse")
-    wrap(conditional.ConditionalKalman, "increment", "Kalman increment (all)")
-    wrap(cls, "_predict_shift_fast", "prediction on the grid (all)")
+    for module, name in KERNELS:
+        wrap(importlib.import_module(module), name)
+    wrap(fft.FFTPlan, "forward", "FFT forward")
+    wrap(fft.FFTPlan, "inverse", "FFT inverse")
+    wrap(conditional.CompiledConditionalKalman, "increment", "Kalman increment (all)")
+    wrap(prediction_kernels.CompiledPrediction, "shift", "prediction on the grid (all)")
     wrap(cls, "predict", "predict (all)")
     wrap(cls, "update", "update (all)")
     for _ in range(args.repeats):

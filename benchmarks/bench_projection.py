@@ -44,8 +44,8 @@ def main(argv=None) -> int:
     import numpy as np
 
     import uwcosim.filters  # noqa: F401  (registers the estimators)
+    from uwcosim.core import jit
     from uwcosim.filters.base import ESTIMATORS
-    from uwcosim.filters.grid import point_mass, projection  # noqa: F401
     from uwcosim.models.tan import tan_model
     from uwcosim.models.terrain import synthetic_bathymetry
     from uwcosim.models.trajectory import simulate, wandering_heading
@@ -70,9 +70,7 @@ def main(argv=None) -> int:
     print(f"TAN model, synthetic terrain, {n} steps of 1 s, sigma0 = {args.sigma0:g} m, "
           f"BLAS threads: {os.environ.get('OPENBLAS_NUM_THREADS', 'default')}, "
           f"{os.cpu_count()} CPUs")
-    from uwcosim.filters.grid import projection_kernels
-
-    print(f"compiled kernels (Numba): {'on' if projection_kernels.ENABLED else 'off'}")
+    print(f"compiled kernels (Numba): {'on' if jit.ENABLED else 'off'}")
     jobs = [(name, kw, ESTIMATORS.get(name)) for name, kw in runs]
 
     def run_once(cls, kw):

@@ -49,8 +49,8 @@ from uwcosim.evaluation.density import (  # noqa: E402
     grid_around,
     particles_on_grid,
 )
+from uwcosim.evaluation.distance import hellinger  # noqa: E402
 from uwcosim.filters.base import ESTIMATORS  # noqa: E402
-from uwcosim.filters.grid.point_mass import hellinger  # noqa: E402
 from uwcosim.models.tan import tan_model  # noqa: E402
 from uwcosim.models.terrain import synthetic_bathymetry  # noqa: E402
 from uwcosim.models.trajectory import simulate  # noqa: E402

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from uwcosim.core import bspline
-from uwcosim.filters.grid import projection_kernels as pk
-from uwcosim.filters.grid.likelihood import TerrainGrid
+from uwcosim.filters.grid.likelihood import TerrainGrid, terrain_depth
 from uwcosim.models.tan import FastTerrain
 from uwcosim.models.terrain import Bathymetry, synthetic_bathymetry
 
@@ -43,7 +42,7 @@ def test_cell_clamps_to_the_grid():
 
 def test_compiled_weights_equal_the_definition():
     s = np.random.default_rng(1).uniform(-2.0, 12.0, 400)
-    idx, w = pk._spline_weights(s, 11)
+    idx, w = bspline.cell_weights(s, 11)
     i, f = bspline.cell(s, 11)
     np.testing.assert_array_equal(idx, i)
     np.testing.assert_allclose(w, bspline.basis(f)[0].T, rtol=0, atol=1e-12)
@@ -66,7 +65,5 @@ def test_table_and_tensor_forms_equal_the_definition(terrain):
     grid = TerrainGrid(terrain).depth(xs, ys)
     np.testing.assert_allclose(grid, terrain.depth(*np.meshgrid(xs, ys, indexing="ij")),
                                rtol=0, atol=1e-12 * scale)
-    ny, nx = terrain.shape
-    out = pk.terrain_depth(xs, ys, terrain.coefficients, terrain.x0, terrain.y0, terrain.dx,
-                           terrain.dy, nx, ny, (terrain.coefficients.shape[0] - ny) // 2)
+    out = terrain_depth(xs, ys, TerrainGrid(terrain).map)
     np.testing.assert_allclose(out, grid, rtol=0, atol=1e-12 * scale)

@@ -10,7 +10,7 @@ from uwcosim.evaluation.density import (
     particles_on_grid,
     silverman_bandwidth,
 )
-from uwcosim.filters.grid.point_mass import hellinger
+from uwcosim.evaluation.distance import hellinger
 
 
 def test_gaussian_and_kde_agree_on_a_gaussian():

@@ -10,8 +10,8 @@ import pytest
 
 from uwcosim.core.errors import ScenarioError
 from uwcosim.evaluation.density import gaussian_on_grid, particles_on_grid
+from uwcosim.evaluation.distance import hellinger
 from uwcosim.filters.base import ESTIMATORS
-from uwcosim.filters.grid.point_mass import hellinger
 from uwcosim.filters.rbpf import RaoBlackwellizedPF
 from uwcosim.filters.regularized import RegularizedPF, optimal_bandwidth
 from uwcosim.models.tan import tan_model

@@ -3,7 +3,7 @@
 With fast-math, LLVM's result depended on how a kernel was compiled: a kernel compiled afresh
 and the same kernel loaded from the on-disk cache differed in the last bits, so the same
 scenario and seed gave different logs on a fresh machine. The kernels are IEEE (their sums in
-a fixed order, see ``projection_kernels._sum2``); this test runs a short PFM-PSI, point-mass
+a fixed order, see :mod:`uwcosim.core.reductions`); this test runs a short PFM-PSI, point-mass
 and marginalized PF (``rbpf_kernels``) sequence in two processes sharing an initially empty
 ``NUMBA_CACHE_DIR``: the first compiles every kernel (cache misses only), the second loads
 them (cache hits only), and the estimates must be identical bytes. (Checked to fail with the
@@ -18,9 +18,9 @@ import sys
 
 import pytest
 
-from uwcosim.filters.grid import projection_kernels as pk
+from uwcosim.core import jit
 
-pytestmark = pytest.mark.skipif(not pk.ENABLED, reason="Numba not installed or disabled")
+pytestmark = pytest.mark.skipif(not jit.ENABLED, reason="Numba not installed or disabled")
 
 # writes the bytes of every estimate (x, P after each update) to argv[1]; prints the numbers
 # of cache hits and misses of the kernels the filters called
@@ -28,8 +28,6 @@ _SCRIPT = r"""
 import sys
 import numpy as np
 import uwcosim.filters  # noqa: F401  (registers the estimators)
-from uwcosim.filters.grid import projection_kernels as pk
-from uwcosim.filters import rbpf_kernels as rk
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.models.terrain import synthetic_bathymetry
 from uwcosim.models.trajectory import simulate, wandering_heading
@@ -54,11 +52,14 @@ for name, kw in (("pfm_psi", {"K": 10}), ("pfm_psi", {"K": 10, "k_sigma": 10.0})
 with open(sys.argv[1], "wb") as f:
     f.write(b"".join(out))
 hits = misses = 0
-for mod, name in [(pk, n) for n in pk.__all__] + [(rk, n) for n in rk.__all__]:
-    stats = getattr(getattr(mod, name), "stats", None)
-    if stats is not None:
-        hits += sum(stats.cache_hits.values())
-        misses += sum(stats.cache_misses.values())
+seen = set()
+for mod in [m for n, m in list(sys.modules.items()) if n.startswith("uwcosim.")]:
+    for value in vars(mod).values():  # every compiled kernel the binder bound
+        stats = getattr(value, "stats", None)
+        if stats is not None and id(value) not in seen and hasattr(stats, "cache_hits"):
+            seen.add(id(value))
+            hits += sum(stats.cache_hits.values())
+            misses += sum(stats.cache_misses.values())
 print(hits, misses)
 """
 

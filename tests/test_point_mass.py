@@ -6,14 +6,15 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from tests.grid_reference import gaussian_convolve
+from uwcosim.core import jit
 from uwcosim.core.errors import ScenarioError
+from uwcosim.evaluation.distance import hellinger
 from uwcosim.filters.base import ESTIMATORS
-from uwcosim.filters.grid.point_mass import (
-    PointMassFilter,
-    gaussian_convolve,
-    hellinger,
-    shift_blur,
-)
+from uwcosim.filters.grid.moments import axes_moments, moments2_ordered
+from uwcosim.filters.point_mass import fft
+from uwcosim.filters.point_mass.filter import PointMassFilter
+from uwcosim.filters.point_mass.prediction import shift_blur
 from uwcosim.models.casadi_model import CasadiModel
 from uwcosim.models.tan import tan_model
 
@@ -150,17 +151,13 @@ def test_point_mass_tan_dvl_only_matches_kalman():
 
 @pytest.mark.parametrize("shape", [(101, 101), (61, 45), (7, 9)])
 def test_point_mass_moment_kernel_matches_numpy(shape):
-    from uwcosim.filters.grid import point_mass_kernels as pmk
-    from uwcosim.filters.grid import projection_kernels as pk
-    from uwcosim.filters.grid.spectral import axes_moments
-
-    if not pk.ENABLED:
+    if not jit.ENABLED:
         pytest.skip("compiled kernels (Numba) not available")
     rng = np.random.default_rng(3)
     axes = [np.linspace(-40.0, 25.0, shape[0]) + 3000.0, np.linspace(-9.0, 30.0, shape[1])]
     values = rng.random(shape) * np.exp(-np.add.outer(np.linspace(-2, 2, shape[0]) ** 2,
                                                       np.linspace(-1, 3, shape[1]) ** 2))
-    mean, cov = pmk.pm_moments(values, axes[0], axes[1])
+    mean, cov = moments2_ordered(values, axes[0], axes[1])
     ref_mean, ref_cov = axes_moments(axes, values)
     np.testing.assert_allclose(mean, ref_mean, rtol=1e-13)
     np.testing.assert_allclose(cov, ref_cov, rtol=1e-11)
@@ -170,14 +167,12 @@ def test_point_mass_moment_kernel_matches_numpy(shape):
 def test_fft_plan_private_binding_and_public_fallback_agree(monkeypatch):
     """The point mass's FFTs through scipy's pocketfft binding and through the public
     scipy.fft functions (the fallback when the private binding is missing): the same bits."""
-    from uwcosim.filters.grid import point_mass_fft as pf
-
     rng = np.random.default_rng(5)
     data = rng.random((108, 120))
     out = []
-    for binding in (pf._pocketfft, None):
-        monkeypatch.setattr(pf, "_pocketfft", binding)
-        plan = pf._FFTPlan((108, 120))
+    for binding in (fft._pocketfft, None):
+        monkeypatch.setattr(fft, "_pocketfft", binding)
+        plan = fft.FFTPlan((108, 120))
         plan.buf[:] = data
         spec = plan.forward().copy()
         out.append((spec, plan.inverse().copy()))

@@ -16,10 +16,12 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from tests.grid_reference import gaussian_convolve
 from uwcosim.core.errors import ScenarioError
+from uwcosim.evaluation.distance import hellinger
 from uwcosim.filters.base import ESTIMATORS
-from uwcosim.filters.grid.point_mass import PointMassFilter, gaussian_convolve, hellinger
-from uwcosim.filters.grid.projection import ProjectionFilter
+from uwcosim.filters.point_mass.filter import PointMassFilter
+from uwcosim.filters.projection.filter import ProjectionFilter
 from uwcosim.models.casadi_model import CasadiModel
 from uwcosim.models.tan import tan_model
 from uwcosim.models.terrain import synthetic_bathymetry

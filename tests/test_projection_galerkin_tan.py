@@ -18,9 +18,10 @@ import casadi as ca
 import numpy as np
 from scipy import ndimage
 
+from tests.grid_reference import gaussian_convolve
+from uwcosim.evaluation.distance import hellinger
 from uwcosim.filters.grid.partition import Partition
-from uwcosim.filters.grid.point_mass import gaussian_convolve, hellinger
-from uwcosim.filters.grid.projection import ProjectionFilter
+from uwcosim.filters.projection.filter import ProjectionFilter
 from uwcosim.models.auv_equations import STATE_NAMES
 from uwcosim.models.casadi_model import CasadiModel
 

@@ -1,7 +1,8 @@
-"""Compiled kernels (Numba) of the projection and point-mass filters against the numpy code.
+"""Compiled kernels (Numba) of the projection and point-mass filters against the numpy forms.
 
-The numpy code is the reference (and the fallback without Numba): each kernel, and each filter
-run with its kernels on (``fast``) and off, must agree to round-off.
+The numpy forms are the reference (and the fallback without Numba): each kernel, and each
+filter run with its compiled forms (``fast``) and with its numpy forms (``use_kernels`` off),
+must agree to round-off.
 """
 
 from __future__ import annotations
@@ -13,15 +14,21 @@ import sys
 import numpy as np
 import pytest
 
+from uwcosim.core import jit
+from uwcosim.core.reductions import neg_sum2
 from uwcosim.filters.base import ESTIMATORS
-from uwcosim.filters.grid import point_mass as pm
-from uwcosim.filters.grid import projection_kernels as pk
-from uwcosim.filters.grid import spectral as po
-from uwcosim.filters.grid.likelihood import TerrainGrid
+from uwcosim.filters.grid import partition
+from uwcosim.filters.grid.likelihood import TerrainGrid, terrain_depth
+from uwcosim.filters.point_mass import prediction as pm
+from uwcosim.filters.point_mass import prediction_kernels as pmk
+from uwcosim.filters.projection import bayes_kernels as bk
+from uwcosim.filters.projection import prediction_kernels as prk
+from uwcosim.filters.projection import series as po
+from uwcosim.filters.projection import series_kernels as sk
 from uwcosim.models.tan import tan_model
 from uwcosim.models.terrain import synthetic_bathymetry
 
-pytestmark = pytest.mark.skipif(not pk.ENABLED, reason="Numba not installed or disabled")
+pytestmark = pytest.mark.skipif(not jit.ENABLED, reason="Numba not installed or disabled")
 
 START = np.array([3000.0, 16000.0, 0.5, 0.0])
 
@@ -44,14 +51,14 @@ def _series(basis):
 def test_grid_transforms_match_numpy(K, M):
     basis = _basis(K=K, M=M)
     m = _series(basis)
-    Tq, Tx, Tg, Tm = pk.tables(K, M)
+    tables = tuple(sk.folded_tables(K, M))
     sv = basis.sqrt_volume()
     values = po.to_grid(m, basis)
-    fast = pk.to_grid2(m, Tq, Tx, 1.0 / sv)
+    fast = sk.to_grid2(m, tables, 1.0 / sv)
     assert np.max(np.abs(fast - values)) <= 1e-12 * np.max(np.abs(values))
     g = np.abs(values) * np.random.default_rng(0).random(values.shape)
     ref = po.from_grid(g, basis)
-    out = pk.from_grid2(g, Tg, Tm, sv / M**2)
+    out = sk.from_grid2(g, tables, sv / M**2)
     assert np.max(np.abs(out - ref)) <= 1e-12 * np.max(np.abs(ref))
 
 
@@ -60,9 +67,7 @@ def test_terrain_depth_matches_grid_evaluation(terrain, L):
     tg = TerrainGrid(terrain)
     ax = _basis(L=L).axes()
     ref = tg.depth(ax[0], ax[1])
-    t = terrain
-    out = pk.terrain_depth(ax[0], ax[1], t.coefficients, t.x0, t.y0, t.dx, t.dy, t.shape[1],
-                           t.shape[0], tg.pad)
+    out = terrain_depth(ax[0], ax[1], tuple(tg.map))
     assert np.max(np.abs(out - ref)) < 1e-9
 
 
@@ -73,20 +78,18 @@ def test_bayes_terms_match_numpy(terrain, var, inflation):
     rows in double precision), ``1e-31`` (no inflation) the uniform-variance branch."""
     basis = _basis(L=240.0)
     m = _series(basis)
-    Tq, Tx, _, _ = pk.tables(basis.K, basis.M)
+    tables = tuple(sk.folded_tables(basis.K, basis.M))
     tg = TerrainGrid(terrain)
-    t = terrain
-    tpar = np.array([t.x0, t.y0, t.dx, t.dy])
-    ipar = np.array([t.shape[1], t.shape[0], tg.pad], dtype=np.int64)
+    terrain_map = tuple(tg.map)
     M = basis.M
     values, W, S = np.empty((M, M)), np.empty((M, M)), np.empty((M, M))
     ax = basis.axes()
     h = tg.depth(ax[0], ax[1])
-    assert np.max(np.abs(h - pk.terrain_depth(ax[0], ax[1], t.coefficients, *tpar, *ipar))) < 1e-9
-    h = pk.terrain_depth(ax[0], ax[1], t.coefficients, *tpar, *ipar)  # the same depths below
+    assert np.max(np.abs(h - terrain_depth(ax[0], ax[1], terrain_map))) < 1e-9
+    h = terrain_depth(ax[0], ax[1], terrain_map)  # the same depths below
     z = float(h[20, 30]) + 1.0
-    neg, tmax, vmin = pk.bayes_terms(m, Tq, Tx, basis.lo, basis.length, t.coefficients, tpar,
-                                     ipar, z, var, inflation, values, W, S)
+    neg, tmax, vmin = bk.bayes_terms((m, basis.lo, basis.length), tables, terrain_map, z, var,
+                                     inflation, (values, W, S))
     ref_values = po.to_grid(m, basis)
     assert np.allclose(values, ref_values, rtol=0, atol=1e-12 * np.abs(ref_values).max())
     cell = np.prod(basis.length / M)
@@ -108,16 +111,15 @@ def test_bayes_terms_match_numpy(terrain, var, inflation):
 @pytest.mark.parametrize("M", [54, 64, 18])
 def test_posterior_moments_and_negative_mass_match_numpy(M):
     """:func:`bayes_posterior`'s mass and moments (cross term summed by columns) and the
-    column-wise negative mass (``_neg_sum2``) against the numpy forms."""
-    from uwcosim.core.jit import _neg_sum2
-
+    column-wise negative mass (``neg_sum2``) against the numpy forms."""
     rng = np.random.default_rng(M)
     basis = _basis(K=4, M=M)
     values = po.to_grid(_series(basis), basis) + 1e-7 * rng.standard_normal((M, M))
     E = rng.random((M, M))
     S = 0.5 + rng.random((M, M))
     vmin = 0.7
-    post, Z, mean, cov, status = pk.bayes_posterior(values, E, S, vmin, basis.lo, basis.length)
+    post, Z, mean, cov, status = bk.bayes_posterior((values, E, S), vmin, basis.lo,
+                                                    basis.length)
     ref = values * E * np.sqrt(vmin) * S
     np.testing.assert_allclose(post, ref, rtol=1e-15, atol=0)
     cell = np.prod(basis.length / M)
@@ -130,7 +132,7 @@ def test_posterior_moments_and_negative_mass_match_numpy(M):
     ref_cov = np.array([[w.sum(1) @ d0**2, d0 @ w @ d1], [d0 @ w @ d1, w.sum(0) @ d1**2]])
     np.testing.assert_allclose(mean, [mx, my], rtol=1e-14, atol=0)
     np.testing.assert_allclose(cov, ref_cov, rtol=1e-11, atol=1e-12 * np.abs(ref_cov).max())
-    assert _neg_sum2(values) == pytest.approx(np.minimum(values, 0).sum(), rel=1e-13, abs=1e-300)
+    assert neg_sum2(values) == pytest.approx(np.minimum(values, 0).sum(), rel=1e-13, abs=1e-300)
 
 
 def test_shift_decay_matches_reprojection_and_decay():
@@ -140,11 +142,12 @@ def test_shift_decay_matches_reprojection_and_decay():
     D = np.array([[2.0, 0.3], [0.3, 1.5]])
     mats = po.transfer_matrices(basis.K, basis.lo, basis.length, new.lo, new.length)
     ref = po.contract(m, list(mats)) * po.diffusion_decay(new, D)
-    out = pk.shift_decay(m, basis.lo, basis.length, new.lo, new.length, D, True)
+    out = sk.shift_decay((m, basis.lo, basis.length), (new.lo, new.length), D, True)
     assert np.max(np.abs(out - ref)) <= 1e-12 * np.max(np.abs(ref))
     # disjoint boxes: nothing is carried over
     far = basis.moved(basis.lo + 10 * basis.length, basis.length)
-    assert not np.any(pk.shift_decay(m, basis.lo, basis.length, far.lo, far.length, D, False))
+    assert not np.any(sk.shift_decay((m, basis.lo, basis.length), (far.lo, far.length), D,
+                                     False))
 
 
 @pytest.mark.parametrize("K,shift,scale,D01", [
@@ -165,7 +168,7 @@ def test_shift_decay_any_series_and_boxes(K, shift, scale, D01):
     D = np.array([[2.0, D01], [D01, 1.5]])
     mats = po.transfer_matrices(basis.K, basis.lo, basis.length, new.lo, new.length)
     ref = po.contract(m, list(mats)) * po.diffusion_decay(new, D)
-    out = pk.shift_decay(m, basis.lo, basis.length, new.lo, new.length, D, True)
+    out = sk.shift_decay((m, basis.lo, basis.length), (new.lo, new.length), D, True)
     assert np.max(np.abs(out - ref)) <= 1e-12 * np.max(np.abs(ref))
 
 
@@ -183,7 +186,7 @@ def test_shift_decay_large_exponents_use_the_direct_decay():
     D = d * np.ones((2, 2))  # exponent d a^2 = 1400: far beyond the separable limit (700)
     mats = po.transfer_matrices(basis.K, basis.lo, basis.length, square.lo, square.length)
     ref = po.contract(m, list(mats)) * po.diffusion_decay(square, D)
-    out = pk.shift_decay(m, basis.lo, basis.length, square.lo, square.length, D, True)
+    out = sk.shift_decay((m, basis.lo, basis.length), (square.lo, square.length), D, True)
     assert np.all(np.isfinite(out))
     anti = np.fliplr(np.abs(ref)).diagonal()
     assert np.all(anti > 1e-3 * anti.max())  # the kept modes carry the series
@@ -199,10 +202,10 @@ def test_predict_shift_normalizes_like_hermitian_normalize():
     mean = basis.lo + 0.5 * basis.length
     cov = np.array([[300.0, 50.0], [50.0, 200.0]])
     d, D = np.array([2.0, -1.5]), np.array([[2.0, 0.3], [0.3, 1.5]])
-    out, lo2, len2, mean2, cov2, mass = pk.predict_shift(m, basis.lo, basis.length, mean, cov, d,
-                                                         D, 4.0, 1.0)
-    ref = pk.shift_decay(m, basis.lo + d, basis.length, lo2, len2, D, True)
-    ref_mass = pk.hermitian_normalize(ref, np.sqrt(np.prod(len2)))
+    out, lo2, len2, mean2, cov2, mass = prk.predict_shift((m, basis.lo, basis.length), mean,
+                                                          cov, d, D, 4.0, 1.0)
+    ref = sk.shift_decay((m, basis.lo + d, basis.length), (lo2, len2), D, True)
+    ref_mass = sk.hermitian_normalize(ref, np.sqrt(np.prod(len2)))
     assert mass > 0 and abs(mass - ref_mass) <= 1e-13 * ref_mass
     assert np.max(np.abs(out - ref)) <= 1e-13 * np.max(np.abs(ref))
     assert np.array_equal(out, np.conj(out[::-1, ::-1]))  # exactly Hermitian
@@ -213,18 +216,19 @@ def test_spline_shift_matches_sparse_matrices():
     X = rng.random((56, 60))
     c0 = np.linspace(-2.0, 52.5, 50)  # some points outside the old 50 x 52 grid
     c1 = np.linspace(0.3, 51.0, 52)
-    B0 = pm._spline_matrix(c0, 50, 56)
+    B0 = pm.spline_matrix(c0, 50, 56)
     ref = B0 @ X
-    B1 = pm._spline_matrix(c1, 52, 60)
+    B1 = pm.spline_matrix(c1, 52, 60)
     ref = np.maximum((B1 @ ref.T).T, 0.0)
-    out = pk.spline_shift_2d(X, c0, c1, 50, 52)
+    out = pmk.spline_shift_2d(X, c0, c1, 50, 52)
     assert np.max(np.abs(out - ref)) < 1e-13
 
 
 def test_available_bits():
     z = np.array([1.0, np.nan, 3.0, 4.0])
-    assert pk.available_bits(z, np.ones(4, bool), np.array([1, 1, 1, 0], bool)) == 0b101
-    assert pk.available_bits(z, np.array([0, 1, 1, 1], bool), np.ones(4, bool)) == 0b1100
+    for available in (partition.available_bits, partition.available_bits_numpy):
+        assert available(z, np.ones(4, bool), np.array([1, 1, 1, 0], bool)) == 0b101
+        assert available(z, np.array([0, 1, 1, 1], bool), np.ones(4, bool)) == 0b1100
 
 
 def _trajectory(model, steps, seed=1):
@@ -256,11 +260,12 @@ def test_filters_same_with_and_without_kernels(terrain, name, settings, steps):
     P0 = np.diag([30.0**2, 30.0**2, 0.05**2, 0.05**2])
     x0 = START + np.array([20.0, -25.0, 0.02, -0.01])
     cls = ESTIMATORS.get(name)
+    numpy_form = type(cls.__name__, (cls,), {"use_kernels": False})
     runs = []
     for fast in (True, False):
-        est = cls.from_settings(model, x0, P0, settings)
-        assert est.fast  # the kernels apply to this model
-        est.fast = est.kalman.fast = fast
+        est = (cls if fast else numpy_form).from_settings(model, x0, P0, settings)
+        assert est.fast == fast  # the kernels apply to this model, unless turned off
+        assert est.kalman.compiled == est.prediction.compiled == est.bayes.compiled == fast
         xs, Ps, diags = [], [], []
         for u, z in zip(us, zs, strict=True):
             est.predict(u, 1.0)
@@ -279,11 +284,21 @@ def test_filters_same_with_and_without_kernels(terrain, name, settings, steps):
 
 
 def test_environment_switch_disables_kernels():
+    """``UWCOSIM_NUMBA=0``: no compiled kernels, and the grid filters run their numpy forms."""
     env = dict(os.environ, UWCOSIM_NUMBA="0")
-    code = "from uwcosim.filters.grid import projection_kernels as pk; print(pk.ENABLED)"
+    code = ("import numpy as np\n"
+            "from uwcosim.core import jit\n"
+            "from uwcosim.filters.base import ESTIMATORS\n"
+            "from uwcosim.models.tan import tan_model\n"
+            "from uwcosim.models.terrain import synthetic_bathymetry\n"
+            "model = tan_model([0.05, 0.05, 1e-4, 1e-4], 0.03, 2.0, "
+            "terrain=synthetic_bathymetry(3))\n"
+            "x0, P0 = np.array([3000.0, 16000.0, 0.5, 0.0]), np.diag([900.0, 900.0, 1e-3, 1e-3])\n"
+            "ests = [ESTIMATORS.get(k)(model, x0, P0) for k in ('pfm_psi', 'point_mass')]\n"
+            "print(jit.ENABLED, *[e.fast for e in ests])")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                          check=True)
-    assert out.stdout.strip() == "False"
+    assert out.stdout.strip() == "False False False"
 
 
 def test_interrupt_wrapped_by_a_kernel_is_recognized():
@@ -295,6 +310,19 @@ def test_interrupt_wrapped_by_a_kernel_is_recognized():
 
     with pytest.raises(SystemError) as info:
         wrapped()
-    assert pk.interrupted(info.value)
-    assert not pk.interrupted(SystemError("other"))
-    assert not pk.interrupted(ValueError("x"))
+    assert jit.interrupted(info.value)
+    assert not jit.interrupted(SystemError("other"))
+    assert not jit.interrupted(ValueError("x"))
+
+
+def test_bundles_as_named_tuples_or_plain_tuples(terrain):
+    """A kernel takes a bundle as its NamedTuple or as the plain tuple of its fields (what the
+    filters pass, :mod:`uwcosim.core.jit`): the same result."""
+    tg = TerrainGrid(terrain)
+    ax = _basis().axes()
+    named = terrain_depth(ax[0], ax[1], tg.map)
+    assert np.array_equal(named, terrain_depth(ax[0], ax[1], tuple(tg.map)))
+    basis = _basis(K=4, M=18)
+    m = _series(basis)
+    tables = sk.folded_tables(basis.K, basis.M)
+    assert np.array_equal(sk.to_grid2(m, tables, 0.5), sk.to_grid2(m, tuple(tables), 0.5))

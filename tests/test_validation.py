@@ -189,8 +189,8 @@ def test_every_project_filter_declares_its_settings_once_on_its_class():
 
 
 def test_choices_match_the_registries():
-    from uwcosim.filters.grid.projection import POSITIVITY
     from uwcosim.filters.particle import RESAMPLERS
+    from uwcosim.filters.projection.bayes import POSITIVITY
 
     pf = settings_model("pf").model_fields["resampling"].annotation
     assert sorted(get_args(pf)) == RESAMPLERS.names()

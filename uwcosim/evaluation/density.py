@@ -4,7 +4,7 @@ Every filter's posterior of the position ``(x, y)`` is turned into a density sam
 common tensor grid ``axes``: a Gaussian (Kalman-family filters) exactly, weighted particles by a
 Gaussian kernel density estimate (binned on the grid, then smoothed with the kernel; Silverman's
 rule for the bandwidth unless given), and grid filters by their own interpolation. The
-distance is :func:`uwcosim.filters.grid.point_mass.hellinger` of two such arrays.
+distance is :func:`uwcosim.evaluation.distance.hellinger` of two such arrays.
 """
 
 from __future__ import annotations

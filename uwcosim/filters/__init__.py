@@ -1,7 +1,8 @@
 """The estimation library: Bayesian filters behind one interface, registered by name.
 
 One module per family (``kalman``, ``sigma_point``, ``particle``, ``rbpf``, ``regularized``,
-``variational``), the grid filters (point mass, projection) in :mod:`uwcosim.filters.grid`;
+``variational``), the grid filters PFM-PSI in :mod:`uwcosim.filters.projection` and the point
+mass in :mod:`uwcosim.filters.point_mass`, with what they share in :mod:`uwcosim.filters.grid`;
 the interface and the registry :data:`ESTIMATORS` in ``base``, how a filter declares its
 settings in ``settings``, the lost-measurement policies in ``policies`` and the covariance
 numerics in ``numerics``. The filters see their model only through
@@ -18,7 +19,8 @@ from uwcosim.filters import (  # noqa: F401  (importing registers the estimators
     variational,
 )
 from uwcosim.filters.base import ESTIMATORS, Estimator, StateSpaceModel, build, register
-from uwcosim.filters.grid import point_mass, projection  # noqa: F401
+from uwcosim.filters.point_mass.filter import PointMassFilter  # noqa: F401  (registers)
+from uwcosim.filters.projection.filter import ProjectionFilter  # noqa: F401  (registers)
 from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
 
 __all__ = ["ESTIMATORS", "Estimator", "FilterSettings", "Measurements", "StateSpaceModel",

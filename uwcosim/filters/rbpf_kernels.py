@@ -13,8 +13,8 @@ RaoBlackwellizedPF` does in some thirty numpy calls on 4x4 matrices and 1000-par
 
 Same maths as the numpy code (see that module's docstrings), different rounding: the small
 products are loops, the per-particle work runs row by row over the particles (vectorizable)
-and the sums over particles are :func:`~uwcosim.core.jit._row_dot`'s fixed-order
-partial sums (IEEE, no fast-math, registered with :func:`~uwcosim.core.jit._jit`
+and the sums over particles are :func:`~uwcosim.core.reductions.row_dot`'s fixed-order
+partial sums (IEEE, no fast-math, registered with :func:`~uwcosim.core.jit.jit`
 like the grid filters' kernels: the same bits whether compiled afresh or loaded from the
 cache). A matrix that is not positive definite is reported (return code) before anything
 is written to the particles; the filter then runs its numpy code, with its repairs, for that
@@ -26,12 +26,13 @@ from __future__ import annotations
 
 import math
 
-from uwcosim.core.jit import ENABLED, _jit, _row_dot
+from uwcosim.core.jit import ENABLED, jit
+from uwcosim.core.reductions import row_dot
 
 __all__ = ["ENABLED", "predict_step", "update_step"]
 
 
-@_jit
+@jit
 def _cholesky(A, L, n):
     """Lower Cholesky factor of ``A[:n, :n]`` into ``L[:n, :n]`` (upper part zeroed); False
     when ``A`` is not (numerically) positive definite."""
@@ -53,7 +54,7 @@ def _cholesky(A, L, n):
     return True
 
 
-@_jit
+@jit
 def _lower_inverse(L, Li, n):
     """``Li[:n, :n] = L[:n, :n]^-1`` of a lower triangular ``L`` (forward substitution of the
     identity; upper part zeroed)."""
@@ -68,7 +69,7 @@ def _lower_inverse(L, Li, n):
             Li[i, j] = -s / L[i, i]
 
 
-@_jit
+@jit
 def _outer_lower(L, r0, n, out):
     """``out = L[r0:r0+n, r0:r0+n] L[r0:r0+n, r0:r0+n]'`` of a lower triangular block."""
     for c in range(n):
@@ -79,7 +80,7 @@ def _outer_lower(L, r0, n, out):
             out[c, d] = s
 
 
-@_jit
+@jit
 def predict_step(F, Q, Pk, perm, n_p, noise, X, L, Pk_out, t):
     """Steps 1-2 of the RBPF (see :meth:`RaoBlackwellizedPF.predict`). ``perm`` orders the
     states ``(p, k)``; ``noise`` holds ``n_p`` rows of standard normals; ``X`` the particles'
@@ -123,7 +124,7 @@ def predict_step(F, Q, Pk, perm, n_p, noise, X, L, Pk_out, t):
     return True, not bad
 
 
-@_jit
+@jit
 def update_step(Zt, z, idx, R, Hk, kpos, Pk, nkb, w, particles, sk, small, work, ll):
     """Steps 3-4 of the RBPF (see :meth:`RaoBlackwellizedPF.update`) for the available rows
     ``idx`` of the predicted measurements ``Zt`` (``(nz, N)``) and of ``z``. ``R`` is their
@@ -172,11 +173,11 @@ def update_step(Zt, z, idx, R, Hk, kpos, Pk, nkb, w, particles, sk, small, work,
     # predictive NIS: y = sum w_i E_i, S = sum w_i E_i E_i' - y y' + C (sums in fixed order)
     y = small[5, 0]
     for a in range(m):
-        y[a] = _row_dot(E, a, w)
+        y[a] = row_dot(E, a, w)
         for i in range(n):
             t[i] = w[i] * E[a, i]
         for b in range(a + 1):
-            S[a, b] = _row_dot(E, b, t)
+            S[a, b] = row_dot(E, b, t)
     for a in range(m):
         for b in range(a + 1):
             S[a, b] = S[a, b] - y[a] * y[b] + M[a, b]

@@ -44,7 +44,8 @@ import weakref
 import casadi as ca
 import numpy as np
 
-from uwcosim.core import bspline
+from uwcosim.core import bspline, jit
+from uwcosim.models import terrain_kernels  # compiled lookups (importing it loads no Numba)
 from uwcosim.models.auv_equations import STATE_NAMES, vehicle_ode
 from uwcosim.models.casadi_model import CasadiModel
 from uwcosim.models.terrain import PAD, Bathymetry
@@ -60,17 +61,13 @@ _KERNELS: list = []  # [module of the compiled lookups] once Numba is loaded, [N
 
 
 def _kernels():
-    """:mod:`uwcosim.models.terrain_kernels` when Numba is already imported and enabled (it is
-    never imported for this alone: about 0.5 s), else None."""
+    """:mod:`uwcosim.models.terrain_kernels` when Numba is already imported and enabled (Numba
+    is never imported for this alone: about 0.5 s), else None."""
     if _KERNELS:
         return _KERNELS[0]
     if "numba" not in sys.modules:
         return None  # asked again at the next call: the grid filters may load it later
-    from uwcosim.core import jit
-
     if jit.ENABLED:
-        from uwcosim.models import terrain_kernels
-
         _KERNELS.append(terrain_kernels)
     else:
         _KERNELS.append(None)

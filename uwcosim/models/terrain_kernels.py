@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import math
 
-from uwcosim.core.jit import _jit
+from uwcosim.core.jit import jit
 
 
-@_jit
+@jit
 def depth_rows(table, X, x0, y0, idx, idy, nx, ny, out):
     """``out[n] = h_d(X[n, 0], X[n, 1])`` from the per-cell polynomial table ``table[4 i + j,
     cell]`` of ``u^i v^j`` (``tan._poly_table``), clamped to the grid as ``depth_xy``; a point
@@ -47,7 +47,7 @@ def depth_rows(table, X, x0, y0, idx, idy, nx, ny, out):
         out[n] = ((q3 * v + q2) * v + q1) * v + q0
 
 
-@_jit
+@jit
 def point(table, x, y, x0, y0, idx, idy, nx, ny):
     """``(h_d, dh_d/dx, dh_d/dy)`` at one point: :meth:`FastTerrain._point` compiled (the same
     operations in the same order; the derivative across a clamped edge is zero)."""

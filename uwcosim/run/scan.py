@@ -24,7 +24,8 @@ import sys
 
 import numpy as np
 
-from uwcosim.core.jit import _jit
+from uwcosim.core.jit import ENABLED as JIT_ENABLED
+from uwcosim.core.jit import jit
 
 SYM_RTOL = 1e-6  # relative asymmetry a covariance may have (uwcosim.run.divergence)
 PIVOT_RTOL = 1e-12
@@ -85,8 +86,8 @@ def _chol_nees(Ps, E, po, xo, n, L, Y):
 
 
 chol_nees_py = _chol_nees
-scan = _jit(_scan)
-_chol_nees = _jit(_chol_nees)
+scan = jit(_scan)
+_chol_nees = jit(_chol_nees)
 
 
 def scan_estimates(X: np.ndarray, Ps: np.ndarray, E: np.ndarray, nis: np.ndarray,
@@ -126,6 +127,4 @@ def scan_estimates(X: np.ndarray, Ps: np.ndarray, E: np.ndarray, nis: np.ndarray
 
 
 def _jit_enabled() -> bool:
-    from uwcosim.core import jit
-
-    return jit.ENABLED
+    return JIT_ENABLED

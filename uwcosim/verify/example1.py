@@ -3,7 +3,8 @@
     u_t = u_xx - x^2 u + (sin t + cos t + 3x) exp(-x^2/2),   u(x, 0) = x exp(-x^2/2)   (eq. 52)
     u(x, t) = (sin t + x) exp(-x^2/2)                                                   (eq. 53)
 
-The projection filter's machinery (:mod:`uwcosim.filters.grid.spectral`) discretizes it on
+The projection filter's machinery (:mod:`uwcosim.filters.projection.series` and the Galerkin
+matrix of :mod:`uwcosim.filters.projection.prediction`) discretizes it on
 ``[-L, L]`` with the ``2K+1`` complex exponentials ``q = -K..K``: Galerkin matrix ``A`` of
 ``d2/dx2 - x^2`` (eqs. 41-42, inner products by FFT quadrature), projected source and initial
 condition. The source is ``(sin t + cos t) a(x) + b(x)``, so the augmented state
@@ -26,7 +27,8 @@ from pathlib import Path
 import numpy as np
 from scipy.linalg import expm
 
-from uwcosim.filters.grid import spectral as po
+from uwcosim.filters.projection import series as po
+from uwcosim.filters.projection.prediction import galerkin_matrix
 
 T_END = 10.0
 H = 0.1  # output step (s): Figure 2 draws the solution every 0.1 s
@@ -68,7 +70,7 @@ def solve(K: int, L: float | None = None, M: int | None = None) -> Example1Run:
     basis = po.SpectralBasis([-L], [2 * L], K, M)
     x = basis.axes()[0]
     g = np.exp(-0.5 * x**2)
-    A = po.galerkin_matrix(basis, c0=-(x**2), c2=[[np.ones(1)]])  # u_xx - x^2 u
+    A = galerkin_matrix(basis, c0=-(x**2), c2=[[np.ones(1)]])  # u_xx - x^2 u
     a = po.from_grid(g, basis)  # projected source terms (eq. 45 quadrature)
     b = po.from_grid(3.0 * x * g, basis)
     m0 = po.from_grid(x * g, basis)  # u(x, 0)

@@ -1,9 +1,15 @@
-"""Grid filters: the partitioned point-mass (``point_mass``) and projection (``pfm_psi``) filters.
+"""What the grid filters share: PFM-PSI (:mod:`uwcosim.filters.projection`) and the point mass
+(:mod:`uwcosim.filters.point_mass`) represent the density of a few *gridded* states on a
+spectral basis or a grid, and run a Kalman filter for the others.
 
-Both represent the density of a few *gridded* states on a grid or a spectral basis and run a
-Kalman filter for the others. Everything only they use lives here: the state partition and the
-model analysis (``partition``), the measurement likelihood on a tensor grid (``likelihood``), the
-spectral machinery of the projection filter (``spectral``) and the compiled kernels
-(``projection_kernels``, ``projection_kalman``, ``projection_predict``,
-``point_mass_kernels``).
+- ``partition``: the split of the state into gridded and Kalman states from the model's CasADi
+  structure, the Fokker-Planck coefficient fields of the gridded block, the split of the
+  available measurement rows (numpy and compiled forms);
+- ``conditional``: the conditional Kalman block (numpy and compiled forms) and the assembly of
+  the filter's ``(x, P)``; ``conditional_kernels``: its compiled kernels and their bundles
+  (``KalmanBlock``, ``ModelStep``);
+- ``likelihood``: the likelihood of the gridded measurement rows on a tensor grid, the
+  separable terrain spline (``TerrainGrid``) and its compiled form (``terrain_depth``);
+- ``moments``: mean and covariance of a density on a tensor grid (numpy and compiled forms);
+- ``small_linalg``: compiled loops for the small matrices of the steps.
 """

@@ -4,17 +4,37 @@
 gridded states on a tensor grid, with the other states at their means. Rows equal to the
 terrain depth of a TAN model (``model.terrain``, checked numerically against ``model.h``) use
 :class:`TerrainGrid`, a separable evaluation of the same bathymetry B-spline; other rows use
-``model.h_batch`` on the grid points.
+``model.h_batch`` on the grid points. :func:`terrain_depth` is the compiled form of
+:meth:`TerrainGrid.depth` that the filters' compiled Bayes steps call, on the map's bundle
+:class:`TerrainMap`.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from uwcosim.core import bspline
+from uwcosim.core.jit import jit
 from uwcosim.filters.grid.partition import Partition
 
 _TAPS = np.arange(4)
+
+
+class TerrainMap(NamedTuple):
+    """A bathymetry map as the compiled kernels take it: the spline coefficients ``C[y, x]``
+    (with ``pad`` padding nodes on each side), the first node ``(x0, y0)``, the spacings and
+    the numbers of nodes ``(nx, ny)``."""
+
+    C: np.ndarray
+    x0: float
+    y0: float
+    dx: float
+    dy: float
+    nx: int
+    ny: int
+    pad: int
 
 
 class TerrainGrid:
@@ -28,10 +48,11 @@ class TerrainGrid:
     def __init__(self, terrain) -> None:
         self.t = terrain
         self.pad = (terrain.coefficients.shape[0] - terrain.shape[0]) // 2
-        # packed map description for the compiled kernels (projection_kernels)
         ny, nx = terrain.shape
-        self.tpar = np.array([terrain.x0, terrain.y0, terrain.dx, terrain.dy], dtype=float)
-        self.ipar = np.array([nx, ny, self.pad], dtype=np.int64)
+        #: the map for the compiled kernels (:func:`terrain_depth`)
+        self.map = TerrainMap(terrain.coefficients, float(terrain.x0), float(terrain.y0),
+                              float(terrain.dx), float(terrain.dy), int(nx), int(ny),
+                              int(self.pad))
 
     @staticmethod
     def _weights(s: np.ndarray, n: int):
@@ -61,6 +82,34 @@ class TerrainGrid:
         iu, iv = iu[:, 0], iv[:, 0]
         Gx = sum(wu[:, a][:, None] * C[:, iu + a - 1 + pad].T for a in range(4))
         return sum(wv[:, b][None, :] * Gx[:, iv + b - 1 + pad - r0] for b in range(4))
+
+
+@jit
+def terrain_depth(xs, ys, terrain):
+    """``h[i, j] = h_d(xs[i], ys[j])`` on the map ``terrain`` (a :class:`TerrainMap`), as
+    :meth:`TerrainGrid.depth` (compiled): first along ``y`` at the map's columns of the support
+    (``Csub' Wy'``, one BLAS product with the banded weight matrix), then the 4 taps along
+    ``x`` per grid row (a loop that vectorizes)."""
+    C, x0, y0, dx, dy, nx, ny, pad = terrain
+    iu, wu = bspline.cell_weights((xs - x0) / dx, nx)
+    iv, wv = bspline.cell_weights((ys - y0) / dy, ny)
+    c0 = iu.min() - 1 + pad
+    c1 = iu.max() + 3 + pad
+    r0 = iv.min() - 1 + pad
+    r1 = iv.max() + 3 + pad
+    WyT = np.zeros((r1 - r0, ys.size))
+    for j in range(ys.size):
+        for a in range(4):
+            WyT[iv[j] + pad - 1 - r0 + a, j] = wv[j, a]
+    CsubT = np.ascontiguousarray(C[r0:r1, c0:c1].T)  # (cols x, rows y)
+    Hy = CsubT @ WyT  # (cols x, len ys)
+    h = np.empty((xs.size, ys.size))
+    for i in range(xs.size):
+        k = iu[i] + pad - 1 - c0
+        w0, w1, w2, w3 = wu[i, 0], wu[i, 1], wu[i, 2], wu[i, 3]
+        for j in range(ys.size):
+            h[i, j] = ((w0 * Hy[k, j] + w1 * Hy[k + 1, j]) + w2 * Hy[k + 2, j]) + w3 * Hy[k + 3, j]
+    return h
 
 
 def _diff2(v: np.ndarray, axis: int) -> np.ndarray:

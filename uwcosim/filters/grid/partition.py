@@ -14,6 +14,9 @@ This module
 - builds the Fokker-Planck coefficient fields of the gridded block from the CasADi drift ``f``:
   ``f_p``, ``div f_p`` and the diffusion ``B = g Q g'`` with its derivatives (CasADi
   differentiates; :meth:`Partition.fields` evaluates them on a grid with ``Function.map``);
+- splits the measurement components available at a step into Kalman and grid rows
+  (:meth:`Partition.split_rows`; the availability bits by :func:`available_bits_numpy` or
+  the compiled :func:`available_bits`, chosen once);
 - the conditional Kalman filter of the ``k`` block, which gives the increment of ``p`` over a
   step with its covariance, is in :mod:`uwcosim.filters.grid.conditional`;
 - the log-likelihood of the ``p`` rows on a tensor grid is in
@@ -27,14 +30,12 @@ exact).
 
 from __future__ import annotations
 
+import math
+
 import casadi as ca
 import numpy as np
-from scipy.linalg import lapack
 
-from uwcosim.filters.base import select
-from uwcosim.filters.grid import projection_kernels as pk
-
-_gesv = lapack.dgesv
+from uwcosim.core.jit import ENABLED, bound, jit
 
 
 class FastFunction:
@@ -108,10 +109,13 @@ class Partition:
     """Split of the state into gridded states ``p`` and conditionally linear states ``k``.
 
     ``states``: names or indices of the gridded states (default: chosen from the structure, see
-    the module docstring); ``measurements``: names of the measurement rows to use (default all).
+    the module docstring); ``measurements``: names of the measurement rows to use (default all);
+    ``compiled``: :meth:`split_rows` by the compiled :func:`available_bits` (default: when
+    Numba is enabled) instead of its numpy form :func:`available_bits_numpy` (the same rows).
     """
 
-    def __init__(self, model, states=None, measurements=None, max_dim: int = 3) -> None:
+    def __init__(self, model, states=None, measurements=None, max_dim: int = 3,
+                 compiled: bool | None = None) -> None:
         for attr in ("_f", "_FG", "_h", "q_psd"):
             if not hasattr(model, attr):
                 raise ValueError(
@@ -119,6 +123,8 @@ class Partition:
                     "functions), not a numpy fast path"
                 )
         self.model = model
+        use_kernel = ENABLED if compiled is None else (compiled and ENABLED)
+        self._available = bound(available_bits) if use_kernel else available_bits_numpy
         nx, nu = model.nx, model.nu
         names = tuple(model.measurement_names)
         if measurements is None:
@@ -194,7 +200,7 @@ class Partition:
                 "are supported (set 'states' to the nonlinear ones)"
             )
         self._validate(f, Jf, B, h_dep, h_lin, x)
-        self._splits: dict[bytes, tuple[list[int], list[int]]] = {}
+        self._splits: dict[int, tuple[list[int], list[int]]] = {}
         self.rows_grid = [r for r in range(model.nz) if self.use[r] and h_dep[r, p].any()]
         self.rows_kalman = [r for r in range(model.nz) if self.use[r] and r not in self.rows_grid]
         # one-step map, its Jacobian and the discrete noise covariance, in one fast call
@@ -229,34 +235,22 @@ class Partition:
         self.drift_constant = not _depends(ca.vertcat(fp, ca.vec(Bp)), xp)
         self.diffusion_constant = not _depends(ca.vec(Bp), xp)
 
-    def split_rows(self, z, mask, nz: int):
-        """``(z, kalman rows, grid rows)`` of the measurement components available now."""
-        if pk.ENABLED and z is not None:
-            z = np.asarray(z, dtype=float)
-            bits = pk.available_bits(z, self.use if mask is None else np.asarray(mask, bool),
-                                     self.use)
-            if bits == 0:
-                return z, [], []
-            split = self._splits.get(bits)
-            if split is None:
-                rows = [r for r in range(nz) if bits >> r & 1]
-                split = ([r for r in rows if r in self.rows_kalman],
-                         [r for r in rows if r in self.rows_grid])
-                self._splits[bits] = split
-            return z, list(split[0]), list(split[1])
-        if z is not None:
-            mask = self.use if mask is None else (np.asarray(mask, bool) & self.use)
-        idx = select(z, mask, nz)
-        z = None if z is None else np.asarray(z, dtype=float)
-        if idx is None:
+    def split_rows(self, z, mask):
+        """``(z, kalman rows, grid rows)`` of the measurement components available now (finite,
+        not masked, used)."""
+        if z is None:
+            return None, [], []
+        z = np.asarray(z, dtype=float)
+        bits = self._available(z, self.use if mask is None else np.asarray(mask, bool),
+                               self.use)
+        if bits == 0:
             return z, [], []
-        key = idx.tobytes()
-        split = self._splits.get(key)
+        split = self._splits.get(bits)
         if split is None:
-            rows = [int(r) for r in idx]
+            rows = [r for r in range(z.size) if bits >> r & 1]
             split = ([r for r in rows if r in self.rows_kalman],
                      [r for r in rows if r in self.rows_grid])
-            self._splits[key] = split
+            self._splits[bits] = split
         return z, list(split[0]), list(split[1])
 
     def _validate(self, f, Jf, B, h_dep, h_lin, x) -> None:
@@ -364,3 +358,22 @@ def _window(a: np.ndarray, taper: float) -> tuple[np.ndarray, np.ndarray]:
     w = p / (p + q)
     dw = (dpsi(t) * q + p * dpsi(1.0 - t)) / (p + q) ** 2
     return w, dw * dtdx * ((t > 0) & (t < 1))
+
+
+def available_bits_numpy(z: np.ndarray, mask: np.ndarray, use: np.ndarray) -> int:
+    """Bit ``r`` set when ``z[r]`` is finite and ``mask[r]`` and ``use[r]`` (numpy form of
+    :func:`available_bits`)."""
+    bits = 0
+    for r in np.flatnonzero(np.isfinite(z) & mask & use).tolist():
+        bits |= 1 << r
+    return bits
+
+
+@jit
+def available_bits(z, mask, use):
+    """Bit ``r`` set when ``z[r]`` is finite and ``mask[r]`` and ``use[r]`` (compiled)."""
+    bits = 0
+    for r in range(z.size):
+        if mask[r] and use[r] and math.isfinite(z[r]):
+            bits |= 1 << r
+    return bits

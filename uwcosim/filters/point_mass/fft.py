@@ -1,7 +1,8 @@
-"""FFT work of the point-mass filter's prediction (two gridded states): the padded transforms
-through scipy's pocketfft binding into arrays kept per shape, and the frequency tables.
+"""FFT work of the point-mass filter's prediction: the frequency tables of a real FFT, the
+cubic B-spline prefilter's symbol, and (two gridded states) the padded transforms through
+scipy's pocketfft binding into arrays kept per shape.
 
-:class:`_FFTPlan` calls ``pypocketfft.r2c`` / ``c2r`` (the functions ``scipy.fft.rfft2`` and
+:class:`FFTPlan` calls ``pypocketfft.r2c`` / ``c2r`` (the functions ``scipy.fft.rfft2`` and
 ``irfft2`` end in) with preallocated outputs: the same transforms and bits without the public
 functions' argument normalization and output allocation (about 10 us per step); if the private
 binding is missing it falls back to the public functions.
@@ -10,6 +11,7 @@ binding is missing it falls back to the public functions.
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 import scipy.fft as sfft
@@ -21,7 +23,7 @@ except ImportError:  # pragma: no cover - another scipy layout: the public funct
 
 
 @lru_cache(maxsize=32)
-def _unit_frequencies(shape: tuple[int, ...]) -> tuple[np.ndarray, ...]:
+def unit_frequencies(shape: tuple[int, ...]) -> tuple[np.ndarray, ...]:
     """Angular frequencies of a real FFT of ``shape`` at unit spacing, broadcastable (cached)."""
     n = len(shape)
     out = []
@@ -34,30 +36,50 @@ def _unit_frequencies(shape: tuple[int, ...]) -> tuple[np.ndarray, ...]:
 
 
 @lru_cache(maxsize=32)
-def _inverse_bspline_factors(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """The 2-D :func:`_inverse_bspline_symbol` as its column and row factors."""
-    o0, o1 = _unit_frequencies(shape)
+def inverse_bspline_symbol(shape: tuple[int, ...]) -> np.ndarray:
+    """``1 / prod_d (4 + 2 cos w_d) / 6``: the cubic B-spline prefilter on a real FFT grid."""
+    out = 1.0
+    for o in unit_frequencies(shape):
+        out = out * (6.0 / (4.0 + 2.0 * np.cos(o)))
+    return out
+
+
+@lru_cache(maxsize=32)
+def inverse_bspline_factors(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """The 2-D :func:`inverse_bspline_symbol` as its column and row factors."""
+    o0, o1 = unit_frequencies(shape)
     return 6.0 / (4.0 + 2.0 * np.cos(o0)), 6.0 / (4.0 + 2.0 * np.cos(o1))
 
 
 @lru_cache(maxsize=256)
-def _fast_len(n: int) -> int:
+def fast_len(n: int) -> int:
     """``sfft.next_fast_len(n, real=True)`` (cached: called twice per prediction)."""
     return sfft.next_fast_len(n, real=True)
 
 
-class _FFTPlan:
-    """Work arrays of the two-dimensional prediction for one padded shape (per filter): the
-    zero-padded input, its spectrum, the inverse transform's output, the prefilter factors."""
+class Prefilter(NamedTuple):
+    """The cubic B-spline prefilter of a two-dimensional real-FFT spectrum as the compiled
+    kernels take it: its column and row factors and the padded length of the last axis."""
 
-    __slots__ = ("buf", "spec", "out", "col", "row", "last")
+    col: np.ndarray
+    row: np.ndarray
+    last: int
+
+
+class FFTPlan:
+    """Work arrays of the two-dimensional prediction for one padded shape (per filter): the
+    zero-padded input, its spectrum, the inverse transform's output, the prefilter factors
+    (also as :attr:`prefilter`, a :class:`Prefilter` as the plain tuple the kernels take)."""
+
+    __slots__ = ("buf", "spec", "out", "col", "row", "last", "prefilter")
 
     def __init__(self, shape: tuple[int, int]) -> None:
         self.buf = np.zeros(shape)
         self.spec = np.empty((shape[0], shape[1] // 2 + 1), dtype=complex)
         self.out = np.empty(shape)
-        self.col, self.row = _inverse_bspline_factors(shape)
+        self.col, self.row = inverse_bspline_factors(shape)
         self.last = shape[1]
+        self.prefilter = (self.col, self.row, self.last)  # a Prefilter
 
     def forward(self) -> np.ndarray:
         """``spec = rfft2(buf)`` (same transform as :func:`scipy.fft.rfft2`, into ``spec``)."""

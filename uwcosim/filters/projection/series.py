@@ -1,4 +1,4 @@
-"""Spectral machinery of the projection filter (seed 000, section 3): basis, quadrature, Galerkin.
+"""The series of PFM-PSI (seed 000, section 3.3): basis, box and quadrature (eqs. 33-41).
 
 A density on the box ``[lo, lo + L]`` (one interval per dimension) is the truncated series
 
@@ -9,10 +9,25 @@ over the *symmetric* frequency set ``q_d = -K..K`` (eq. 35 with ``q = -K..K`` in
 ``q`` to ``q - k`` for both signs of ``k``). Coefficients are stored as a complex array of shape
 ``(2K+1,)*n`` indexed by ``q + K`` (C order), with the Hermitian symmetry kept up to round-off.
 
-Inner products are quadratures on the periodic grid ``x_n = lo + n L / M`` (``M`` points per
-dimension), i.e. FFTs (eqs. 41, 45, 46): ``<g, phi_q> = sqrt(L) / M * FFT(g)[q]``. The
-re-projection between two intervals and the moments (eqs. 50-51) use exact integrals of the
-truncated series instead of quadratures.
+- the box, the *projection symmetric interval* ``E -+ k_sigma sigma`` (eq. 33, garbled in the
+  extraction as ``-E - 10C``; :func:`symmetric_interval`), and its quadrature grid
+  ``x_n = lo + n L / M`` (eq. 34 with ``M`` points per dimension; :class:`SpectralBasis`);
+- inner products as quadratures on that periodic grid, i.e. FFTs (eqs. 37-38, 41, 45-46):
+  ``<g, phi_q> = sqrt(L) / M * FFT(g)[q]`` (:func:`from_grid`), and the series on the grid
+  (:func:`to_grid`) or at any points (:func:`evaluate`);
+- the mass ``sqrt(prod L) m_0`` (eq. 39) and the normalization of eqs. 40, 44, 48 with the
+  Hermitian part (:func:`normalize`); the exact moments of the truncated series (eqs. 50-51
+  as integrals, :func:`series_moments`; :func:`carried_moments` falls back to the clipped grid
+  values) and the quadrature moments of grid values (:func:`grid_moments`);
+- the re-centring of step (1): the exact re-projection of a series onto another box (the old
+  series taken as zero outside its box; :func:`reproject`), a Gaussian's coefficients
+  (:func:`gaussian_coefficients`, eqs. 18-20) and the Gaussian convolution
+  ``exp(-w' D w / 2)`` (:func:`diffusion_decay`).
+
+:class:`SeriesDensity` is the filter's state (the series on its basis and the moments it
+reports); :class:`SeriesOps` holds the three operations every step calls (box, normalization,
+re-projection) in their numpy form; their compiled form is
+:class:`~uwcosim.filters.projection.series_kernels.CompiledSeriesOps`.
 """
 
 from __future__ import annotations
@@ -23,6 +38,10 @@ from functools import lru_cache
 
 import numpy as np
 import scipy.fft as sfft
+
+from uwcosim.core.errors import FilterDivergence
+from uwcosim.filters.grid.moments import axes_moments
+from uwcosim.filters.numerics import symmetrize
 
 TWO_PI = 2.0 * np.pi
 
@@ -292,7 +311,8 @@ def _moment_vectors(basis: SpectralBasis, d: int) -> tuple[np.ndarray, np.ndarra
     return v0, v1, v2
 
 
-def moments(m: np.ndarray, basis: SpectralBasis) -> tuple[np.ndarray, np.ndarray, float]:
+def series_moments(m: np.ndarray, basis: SpectralBasis) -> tuple[np.ndarray, np.ndarray,
+                                                                 float]:
     """Mean, covariance and mass of the series by exact integration (eqs. 50-51)."""
     n = basis.n
     vecs = [_moment_vectors(basis, d) for d in range(n)]
@@ -328,86 +348,6 @@ def grid_moments(values: np.ndarray, basis: SpectralBasis) -> tuple[np.ndarray, 
     return axes_moments(basis.axes(), values)
 
 
-def axes_moments(axes, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and covariance of nonnegative weights ``values`` (any scale) on a tensor grid."""
-    n = len(axes)
-    if n == 2:  # two marginals and one bilinear form
-        m0 = values.sum(axis=1)
-        total = m0.sum()
-        m1 = values.sum(axis=0)
-        mu = np.array([m0 @ axes[0], m1 @ axes[1]]) / total
-        d0 = axes[0] - mu[0]
-        d1 = axes[1] - mu[1]
-        c01 = d0 @ values @ d1 / total
-        return mu, np.array([[m0 @ (d0 * d0) / total, c01], [c01, m1 @ (d1 * d1) / total]])
-    w = values / values.sum()
-    marg = [w.sum(axis=tuple(i for i in range(n) if i != d)) for d in range(n)]
-    mu = np.array([marg[d] @ axes[d] for d in range(n)])
-    cov = np.zeros((n, n))
-    for r in range(n):
-        dr = axes[r] - mu[r]
-        cov[r, r] = marg[r] @ (dr * dr)
-        for s in range(r + 1, n):
-            m2 = w if n == 2 else w.sum(axis=tuple(i for i in range(n) if i not in (r, s)))
-            cov[r, s] = cov[s, r] = dr @ m2 @ (axes[s] - mu[s])
-    return mu, cov
-
-
-# ---------------------------------------------------------------------------------------------
-# Galerkin matrix of a second-order operator with variable coefficients
-
-
-@lru_cache(maxsize=16)
-def _difference_index(K: int, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Flat multi-indices ``Q`` (N, n) and the index of ``q - i`` into a ``(4K+1)^n`` array."""
-    grids = np.meshgrid(*([np.arange(-K, K + 1)] * n), indexing="ij")
-    Q = np.stack([g.ravel() for g in grids], axis=1)
-    D = Q[:, None, :] - Q[None, :, :] + 2 * K
-    flat = np.ravel_multi_index(tuple(D[..., d] for d in range(n)), (4 * K + 1,) * n)
-    return Q, flat
-
-
-def field_coefficients(values: np.ndarray, basis: SpectralBasis) -> np.ndarray:
-    """``c_k = (1 / prod L) integral c(x) exp(-j w_k (x - lo))`` for ``k = -2K..2K`` (FFT)."""
-    K, M, n = basis.K, basis.M, basis.n
-    C = sfft.fftn(values) / M**n
-    idx = np.arange(-2 * K, 2 * K + 1) % M
-    return C[np.ix_(*([idx] * n))]
-
-
-def galerkin_matrix(basis: SpectralBasis, c0=None, c1=None, c2=None) -> np.ndarray:
-    """Galerkin matrix ``A[q, i] = <L phi_i, phi_q>`` of the operator
-
-        L u = sum_rs c2[r][s] d2u/dx_r dx_s + sum_s c1[s] du/dx_s + c0 u
-
-    with coefficient fields sampled on the quadrature grid (``None`` = zero). For a field ``c``,
-    ``<c d^a phi_i, phi_q> = c_{q-i} (j w_i)^a``: a Toeplitz structure in ``q - i`` built from
-    one FFT per field (eqs. 41-42). Needs ``M >= 4K+1`` to resolve every difference ``q - i``.
-    """
-    K, n = basis.K, basis.n
-    if basis.M < 4 * K + 1:
-        raise ValueError(f"Galerkin matrix needs M >= 4K+1 = {4 * K + 1}, got {basis.M}")
-    Q, flat = _difference_index(K, n)
-    jw = [1j * TWO_PI * Q[:, d] / basis.length[d] for d in range(n)]  # j w of column i
-    N = Q.shape[0]
-    A = np.zeros((N, N), dtype=complex)
-    if c0 is not None:
-        A += field_coefficients(np.broadcast_to(c0, (basis.M,) * n), basis).ravel()[flat]
-    if c1 is not None:
-        for s in range(n):
-            if c1[s] is None:
-                continue
-            ch = field_coefficients(np.broadcast_to(c1[s], (basis.M,) * n), basis).ravel()
-            A += ch[flat] * jw[s][None, :]
-    if c2 is not None:
-        for r in range(n):
-            for s in range(n):
-                if c2[r][s] is None:
-                    continue
-                ch = field_coefficients(np.broadcast_to(c2[r][s], (basis.M,) * n), basis).ravel()
-                A += ch[flat] * (jw[r] * jw[s])[None, :]
-    return A
-
 
 def diffusion_decay(basis: SpectralBasis, D: np.ndarray) -> np.ndarray:
     """``exp(-w' D w / 2)`` on the coefficients: a Gaussian convolution of covariance ``D``."""
@@ -428,25 +368,76 @@ def diffusion_decay(basis: SpectralBasis, D: np.ndarray) -> np.ndarray:
     return np.exp(-0.5 * quad)
 
 
-def exponential_filter(basis: SpectralBasis, order: float, alpha: float = 36.0) -> np.ndarray:
-    """Spectral filter ``exp(-alpha (|q|/K)^order)`` per dimension (``order`` even, e.g. 8)."""
-    s = np.exp(-alpha * (np.abs(basis.q) / max(basis.K, 1)) ** order)
-    out = s
-    for _ in range(basis.n - 1):
-        out = np.multiply.outer(out, s)
-    return out
+def symmetric_interval(mean, cov, k_sigma: float, min_halfwidth: float):
+    """The box ``(lo, length)`` of ``mean -+ k_sigma sigma`` per dimension (eq. 33), with the
+    half-width floored at ``min_halfwidth`` (and at ``1e-9 max(1, |mean|)``)."""
+    sig = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    floor = np.maximum(min_halfwidth, 1e-9 * np.maximum(1.0, np.abs(mean)))
+    half = np.maximum(k_sigma * sig, floor)
+    return mean - half, 2.0 * half
 
 
-def jackson_factors(basis: SpectralBasis) -> np.ndarray:
-    """Jackson damping ``g_|q|`` (tensor product): the smoothed series is the convolution of the
-    density with the positive Jackson kernel, hence nonnegative, and keeps its mass (``g_0 = 1``);
-    the kernel's width is about ``L / (2K + 2)`` (kernel polynomial method, Weisse et al. 2006).
-    """
-    N = basis.K
-    q = np.abs(basis.q)
-    a = np.pi / (N + 2)
-    g = ((N + 2 - q) * np.cos(a * q) + np.sin(a * q) / np.tan(a)) / (N + 2)
-    out = g
-    for _ in range(basis.n - 1):
-        out = np.multiply.outer(out, g)
-    return out
+def normalize(m: np.ndarray, basis: SpectralBasis) -> float:
+    """``m = (m + conj(m_-q)) / 2`` in place, then ``m /= mass`` when the mass is finite and
+    positive (eqs. 40, 44, 48); returns the mass."""
+    m += np.conj(m[(slice(None, None, -1),) * m.ndim])  # Hermitian part (times 2)
+    m *= 0.5
+    mass_ = mass(m, basis)
+    if math.isfinite(mass_) and mass_ > 0:
+        m /= mass_
+    return mass_
+
+
+def carried_moments(m: np.ndarray, basis: SpectralBasis) -> tuple[np.ndarray, np.ndarray]:
+    """The moments of the series (:func:`series_moments`), or of its clipped grid values when
+    those are not valid (a nonpositive or non-finite variance); the covariance symmetrized."""
+    mean, cov, _ = series_moments(m, basis)
+    if np.any(np.diag(cov) <= 0) or not np.all(np.isfinite(cov)):
+        values = to_grid(m, basis)
+        mean, cov = grid_moments(np.maximum(values, 0.0), basis)
+    return mean, symmetrize(cov)
+
+
+@dataclass
+class SeriesDensity:
+    """PFM-PSI's density of the gridded states: the series ``m`` on ``basis`` (its box and
+    quadrature grid) and the gridded block's moments ``mean``, ``cov`` the filter reports."""
+
+    m: np.ndarray
+    basis: SpectralBasis
+    mean: np.ndarray
+    cov: np.ndarray
+
+
+class SeriesOps:
+    """The box (eq. 33), the normalization (eqs. 40, 44, 48) and the re-projection of a step,
+    numpy form (any dimension). ``kind``: the filter's name, for its errors."""
+
+    #: the operations run compiled kernels
+    compiled = False
+
+    def __init__(self, kind: str, k_sigma: float, min_halfwidth: float) -> None:
+        self.kind = kind
+        self.k_sigma = k_sigma
+        self.min_halfwidth = min_halfwidth
+
+    def box(self, mean, cov) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`symmetric_interval` with the filter's ``k_sigma`` and ``min_halfwidth``."""
+        return symmetric_interval(mean, cov, self.k_sigma, self.min_halfwidth)
+
+    def normalize(self, m: np.ndarray, basis: SpectralBasis) -> float:
+        """:func:`normalize` in place; the mass, FilterDivergence when it is lost."""
+        return self.checked(self._normalize(m, basis))
+
+    def checked(self, mass: float) -> float:
+        """``mass``, or FilterDivergence when it is not finite and positive."""
+        if not (math.isfinite(mass) and mass > 0):
+            raise FilterDivergence(f"{self.kind}: density lost its mass ({mass})")
+        return mass
+
+    def _normalize(self, m: np.ndarray, basis: SpectralBasis) -> float:
+        return normalize(m, basis)
+
+    def reproject(self, m: np.ndarray, basis: SpectralBasis, new: SpectralBasis) -> np.ndarray:
+        """:func:`reproject`."""
+        return reproject(m, basis, new)

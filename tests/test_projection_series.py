@@ -1,4 +1,5 @@
-"""Spectral machinery of the projection filter and Example 1 of seed 000 (eqs. 52-53)."""
+"""The series and the Galerkin matrix of PFM-PSI (:mod:`uwcosim.filters.projection.series`,
+``prediction``) and Example 1 of seed 000 (eqs. 52-53)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ import pytest
 from scipy.linalg import expm
 from scipy.stats import multivariate_normal
 
-from uwcosim.filters.grid import spectral as po
+from uwcosim.filters.projection import series as po
+from uwcosim.filters.projection.prediction import galerkin_matrix
 from uwcosim.verify.example1 import run_example1, solve
 
 MEAN = np.array([0.5, 1.0])
@@ -33,7 +35,7 @@ def test_grid_roundtrip_and_gaussian(basis):
 
 def test_moments_exact_and_quadrature(basis):
     m = po.gaussian_coefficients(MEAN, COV, basis)
-    mean, cov, mass = po.moments(m, basis)
+    mean, cov, mass = po.series_moments(m, basis)
     assert mass == pytest.approx(1.0, abs=1e-12)
     np.testing.assert_allclose(mean, MEAN, atol=1e-6)
     np.testing.assert_allclose(cov, COV, atol=1e-6)
@@ -54,7 +56,7 @@ def test_galerkin_constant_coefficients_is_diagonal_and_exact(basis):
     """Constant drift and diffusion: A is diagonal and exp(A t) is the exact FPE solution."""
     f = np.array([0.3, -0.2])
     B = np.array([[0.2, 0.05], [0.05, 0.1]])
-    A = po.galerkin_matrix(
+    A = galerkin_matrix(
         basis,
         c1=[np.full(1, -f[0]), np.full(1, -f[1])],
         c2=[[np.full(1, B[r, s] / 2) for s in range(2)] for r in range(2)],
@@ -72,11 +74,11 @@ def test_galerkin_ornstein_uhlenbeck_1d():
     basis = po.SpectralBasis([-12.0], [24.0], K=40, M=256)
     x = basis.axes()[0]
     # L* p = 1/2 p'' + (x p)' = 1/2 p'' + x p' + p
-    A = po.galerkin_matrix(basis, c0=np.ones_like(x), c1=[x], c2=[[np.full(1, 0.5)]])
+    A = galerkin_matrix(basis, c0=np.ones_like(x), c1=[x], c2=[[np.full(1, 0.5)]])
     m = po.gaussian_coefficients([2.0], [[0.5]], basis)
     t = 0.7
     m = expm(A * t) @ m
-    mean, cov, _ = po.moments(m, basis)
+    mean, cov, _ = po.series_moments(m, basis)
     assert mean[0] == pytest.approx(2.0 * np.exp(-t), abs=1e-8)
     assert cov[0, 0] == pytest.approx(0.5 * np.exp(-2 * t) + 0.5 * (1 - np.exp(-2 * t)), abs=1e-8)
 

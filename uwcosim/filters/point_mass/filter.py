@@ -1,0 +1,158 @@
+"""Point-mass (grid) Bayes filter: the reference posterior of terrain navigation.
+
+The density of the gridded states ``p`` (all states of a low-dimensional model; the position of
+the TAN model, whose velocities are handled by the conditional Kalman filter of
+:mod:`uwcosim.filters.grid.conditional`, exactly as in ``pfm_psi``) lives on a regular grid
+spanning ``mean -+ span * sigma``, chosen anew at every prediction from the predicted mean and
+covariance (:mod:`~uwcosim.filters.point_mass.grid`). The prediction carries the density to
+the new grid (:mod:`~uwcosim.filters.point_mass.prediction`), the update multiplies it by the
+likelihood on the grid (:mod:`~uwcosim.filters.point_mass.bayes`).
+
+Each step has a numpy form (any number of gridded states) and a compiled form (two gridded
+states; Numba, :mod:`uwcosim.core.jit`), chosen once when the filter is built
+(:attr:`PointMassFilter.fast`); they give the same results to round-off
+(``tests/test_projection_kernels.py``).
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+from pydantic import Field, StrictBool, StrictFloat, StrictInt, StrictStr
+from scipy import ndimage
+
+from uwcosim.core.errors import FilterDivergence
+from uwcosim.core.jit import ENABLED
+from uwcosim.filters.base import Estimator, register
+from uwcosim.filters.grid.conditional import CompiledConditionalKalman, ConditionalKalman
+from uwcosim.filters.grid.likelihood import GridLikelihood
+from uwcosim.filters.grid.partition import Partition, symbolic
+from uwcosim.filters.point_mass.bayes import BayesUpdate
+from uwcosim.filters.point_mass.bayes_kernels import CompiledBayesUpdate
+from uwcosim.filters.point_mass.grid import GridDensity
+from uwcosim.filters.point_mass.prediction import Prediction
+from uwcosim.filters.point_mass.prediction_kernels import CompiledPrediction
+from uwcosim.filters.settings import MEASUREMENTS, STATES, FilterSettings, Measurements
+
+#: largest grid memory (bytes) a point-mass filter may ask for
+MAX_GRID_BYTES = 4 * 2**30
+
+
+@register("point_mass")
+class PointMassFilter(Estimator):
+    """Grid (point-mass) Bayes filter with a grid re-centred on the support every step."""
+
+    class Settings(FilterSettings):
+        n_points: StrictInt | list[StrictInt] = Field(101, description="grid points per gridded "
+                                                      "state (>= 5; one value or one per state)")
+        span: StrictFloat = Field(8.0, gt=0, description="half-width of the grid in standard "
+                                  "deviations")
+        states: list[StrictStr | StrictInt] | None = Field(None, description=STATES)
+        measurements: Measurements = Field(None, description=MEASUREMENTS)
+        long_run: StrictBool = Field(True, description="conditional Kalman filter of the other "
+                                     "states in its long-run form")
+
+    #: False: the numpy forms of the steps even where the compiled ones apply (the reference
+    #: they are tested against)
+    use_kernels: ClassVar[bool] = True
+
+    def __init__(self, model, x0, P0, **settings) -> None:
+        model = symbolic(model)
+        super().__init__(model, x0, P0, **settings)
+        s = self.settings
+        kernels = self.use_kernels and ENABLED
+        self.part = Partition(model, s.states, s.measurements, compiled=kernels)
+        p = self.part.p
+        n = len(p)
+        #: the steps run their compiled forms (two gridded states)
+        self.fast = bool(kernels and n == 2)
+        kalman = CompiledConditionalKalman if self.fast else ConditionalKalman
+        self.kalman = kalman(model, self.part, self.x, self.P, s.long_run)
+        self.likelihood = GridLikelihood(model, self.part)
+        n_points = [int(v) for v in np.broadcast_to(np.asarray(s.n_points), (n,))]
+        if min(n_points) < 5:
+            raise ValueError("n_points must be >= 5")
+        need = float(np.prod(np.asarray(n_points, dtype=float))) * 8.0 * (2 * n + 6)
+        if need > MAX_GRID_BYTES:  # the grid, its mesh and work arrays
+            raise ValueError(f"n_points {n_points} needs about {need / 2**30:.3g} GiB "
+                             f"(limit {MAX_GRID_BYTES / 2**30:g} GiB): use fewer points")
+        self._keys = [(f"interval_lo_{m}", f"interval_hi_{m}") for m in self.part.names]
+        mean, cov = self.x[p], self.P[np.ix_(p, p)]
+        if np.any(np.diag(cov) <= 0):
+            raise ValueError("P0 must have a positive variance for every gridded state")
+        #: the density of the gridded states on its grid, and its moments
+        self.density = GridDensity(self.kind, s.span, n_points, mean, cov)
+        self._after_update = False
+        if self.fast:
+            self.prediction = CompiledPrediction(self.part, self.kalman, self.density)
+            self.bayes = CompiledBayesUpdate(self.likelihood, self.kalman, model.R)
+        else:
+            self.prediction = Prediction(self.part, self.kalman)
+            self.bayes = BayesUpdate(self.likelihood, self.kalman)
+        # the prediction step the model needs, chosen once
+        self._predict = (self.prediction.translate if self.part.drift_constant
+                         else self.prediction.chapman_kolmogorov)
+        x, P, finite = self.kalman.assemble(mean, cov)
+        if not finite:
+            raise FilterDivergence(f"{self.kind}: non-finite estimate")
+        self.x, self.P = x, P
+
+    # ------------------------------------------------------------------------------------------
+    @property
+    def values(self) -> np.ndarray:
+        """The density's values on the grid."""
+        return self.density.values
+
+    @property
+    def axes(self) -> list[np.ndarray]:
+        """The grid's axes."""
+        return self.density.axes
+
+    def predict(self, u, dt: float) -> None:
+        self.diagnostics = {}
+        self._after_update = False
+        u = np.asarray(u, dtype=float).reshape(-1)
+        x, P, finite = self._predict(self.density, self.x, u, dt, self.diagnostics)
+        if not finite:
+            raise FilterDivergence(f"{self.kind}: non-finite estimate")
+        self.x, self.P = x, P
+
+    def update(self, z, mask=None) -> None:
+        if self._after_update:  # fresh diagnostics, unless a prediction just wrote them
+            self.diagnostics = {}
+        self._after_update = True
+        z, rows_k, rows_g = self.part.split_rows(z, mask)
+        x, P, finite = self.bayes.update(self.density, self.x, z, rows_k, rows_g,
+                                         self.diagnostics)
+        if not finite:
+            raise FilterDivergence(f"{self.kind}: non-finite estimate")
+        self.x, self.P = x, P
+        d = self.diagnostics
+        d["n_points"] = float(self.density.values.size)
+        for (klo, khi), a in zip(self._keys, self.density.axes, strict=True):
+            d[klo] = a.item(0)
+            d[khi] = a.item(-1)
+
+    # ------------------------------------------------------------------------------------------
+    @property
+    def gridded_states(self) -> list[str]:
+        return self.part.names
+
+    def density_grid(self, axes=None, n: int | None = None):
+        """Posterior density on a tensor grid: ``(axes, values)`` (default: the filter's grid).
+
+        Other ``axes`` are served by cubic interpolation (zero outside the grid); ``n`` asks for
+        ``n`` points per dimension across the grid.
+        """
+        density = self.density
+        if axes is None and n is None:
+            return [a.copy() for a in density.axes], density.values.copy()
+        if axes is None:
+            axes = [np.linspace(a[0], a[-1], n) for a in density.axes]
+        axes = [np.asarray(a, dtype=float) for a in axes]
+        coords = [(a - density.axes[d][0]) / density.spacing[d] for d, a in enumerate(axes)]
+        mesh = np.meshgrid(*coords, indexing="ij")
+        vals = ndimage.map_coordinates(density.values, mesh, order=3, mode="constant",
+                                       cval=0.0)
+        return axes, np.maximum(vals, 0.0)

@@ -1,4 +1,5 @@
-"""Evaluation of runs: metrics (:mod:`uwcosim.evaluation.metrics`) and the evaluate stage,
+"""Evaluation of runs: metrics (:mod:`uwcosim.evaluation.metrics`), densities and distances for
+the reference-posterior study (``density``, ``distance``) and the evaluate stage,
 :func:`evaluate` (``summary.json`` of a run directory from its files alone)."""
 
 from uwcosim.evaluation.metrics import (

@@ -51,7 +51,8 @@ class SigmaRule:
         E[c : c + n] = self.scale * np.eye(n)
         E[c + n :] = -self.scale * np.eye(n)
         object.__setattr__(self, "_E", E)
-        object.__setattr__(self, "_wc_col", self.wc[:, None].copy())
+        #: the covariance weights as a column (``wc[:, None]``), for the weighted products
+        object.__setattr__(self, "wc_col", self.wc[:, None].copy())
 
     def points(self, x: np.ndarray, L: np.ndarray) -> np.ndarray:
         """The point set as rows, ``(2n + center, n)``: ``x + s L_i`` as ``x + (E L')_i``,
@@ -67,7 +68,7 @@ class SigmaRule:
         m = np.dot(self.wm, D)  # mean = sum wm_i Y_i, computed relative to Y_0
         m += ref
         D = Y - m
-        return m, np.dot((self._wc_col * D).T, D), D  # P = sum wc_i (Y_i - m)(Y_i - m)'
+        return m, np.dot((self.wc_col * D).T, D), D  # P = sum wc_i (Y_i - m)(Y_i - m)'
 
 
 def unscented_rule(n: int, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0):
@@ -141,7 +142,7 @@ class SigmaPointFilter(FilterBase):
         S = Pzz
         S += self._R(idx)  # S = Pzz + R
         DX = X - self.x
-        Pxz = np.dot((rule._wc_col * DX).T, DZ)  # Pxz = sum wc_i (X_i - x)(Z_i - z)'
+        Pxz = np.dot((rule.wc_col * DX).T, DZ)  # Pxz = sum wc_i (X_i - x)(Z_i - z)'
         y = z - zhat  # y = z - zhat
         K, self.diagnostics["nis"] = gain_and_nis(Pxz, S, y, self.diagnostics)  # K = Pxz S^-1
         self.x = self.x + np.dot(K, y)  # x = x + K y

@@ -54,18 +54,21 @@ class CasadiModel:
         xf = step(x, u, w, dt)
         w0 = ca.DM.zeros(self.nw)
         # SX-expanded: the ODE is pure arithmetic, so expansion makes calls several times faster
-        self._f = ca.Function("f", [x, u, dt], [step(x, u, w0, dt)]).expand()
-        self._FG = ca.Function(
+        self.f_fn = ca.Function("f", [x, u, dt], [step(x, u, w0, dt)]).expand()
+        self.FG_fn = ca.Function(
             "FG", [x, u, dt],
             [ca.substitute(ca.jacobian(xf, x), w, w0), ca.substitute(ca.jacobian(xf, w), w, w0)],
         ).expand()
-        self.control_psd = self._Ju = None
+        self.control_psd = self.Ju_fn = None
         if control_psd is not None:
             self.control_psd = np.asarray(control_psd, dtype=float).reshape(self.nu)
             # Jacobian of the noise-free step with respect to the controls
-            self._Ju = ca.Function("Ju", [x, u, dt],
-                                   [ca.substitute(ca.jacobian(xf, u), w, w0)]).expand()
-        self._h = h
+            self.Ju_fn = ca.Function("Ju", [x, u, dt],
+                                     [ca.substitute(ca.jacobian(xf, u), w, w0)]).expand()
+        #: the CasADi functions of the model (the grid filters analyse them): the noise-free
+        #: step ``f_fn(x, u, dt)``, its Jacobians ``FG_fn`` (in the state and the noise),
+        #: ``Ju_fn`` (in the controls, with control noise) and the output map ``h_fn(x)``
+        self.h_fn = h
         xs = ca.MX.sym("x", self.nx)
         self._H = ca.Function("H", [xs], [ca.jacobian(h(xs), xs)])
         self._f_maps: dict[int, ca.Function] = {}
@@ -73,10 +76,10 @@ class CasadiModel:
 
     # single-point evaluations -------------------------------------------------------------
     def f(self, x, u, dt: float) -> np.ndarray:
-        return np.asarray(self._f(x, u, dt)).reshape(self.nx)
+        return np.asarray(self.f_fn(x, u, dt)).reshape(self.nx)
 
     def FG(self, x, u, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        F, G = self._FG(x, u, dt)
+        F, G = self.FG_fn(x, u, dt)
         return np.asarray(F), np.asarray(G)
 
     def F(self, x, u, dt: float) -> np.ndarray:
@@ -86,12 +89,12 @@ class CasadiModel:
         G = self.FG(x, u, dt)[1]
         Q = (G * (self.q_psd / dt)) @ G.T  # Q = G diag(psd/dt) G'
         if self.control_psd is not None:
-            Ju = np.asarray(self._Ju(x, u, dt))
+            Ju = np.asarray(self.Ju_fn(x, u, dt))
             Q = Q + (Ju * (self.control_psd / dt)) @ Ju.T
         return Q
 
     def h(self, x) -> np.ndarray:
-        return np.asarray(self._h(x)).reshape(self.nz)
+        return np.asarray(self.h_fn(x)).reshape(self.nz)
 
     def H(self, x) -> np.ndarray:
         return np.asarray(self._H(x)).reshape(self.nz, self.nx)
@@ -101,13 +104,13 @@ class CasadiModel:
         n = X.shape[0]
         fm = self._f_maps.get(n)
         if fm is None:
-            fm = self._f_maps[n] = self._f.map(n)
+            fm = self._f_maps[n] = self.f_fn.map(n)
         return np.asarray(fm(X.T, u, dt)).T
 
     def h_batch(self, X: np.ndarray) -> np.ndarray:
         n = X.shape[0]
         hm = self._h_maps.get(n)
         if hm is None:
-            hm = self._h_maps[n] = self._h.map(n)
+            hm = self._h_maps[n] = self.h_fn.map(n)
         return np.asarray(hm(X.T)).T
 

@@ -116,7 +116,7 @@ class Partition:
 
     def __init__(self, model, states=None, measurements=None, max_dim: int = 3,
                  compiled: bool | None = None) -> None:
-        for attr in ("_f", "_FG", "_h", "q_psd"):
+        for attr in ("f_fn", "FG_fn", "h_fn", "q_psd"):
             if not hasattr(model, attr):
                 raise ValueError(
                     "the projection and point-mass filters need the CasadiModel (its CasADi "
@@ -150,11 +150,11 @@ class Partition:
                 Ju = ca.substitute(ca.jacobian(xdot, u), w, ca.DM.zeros(model.nw))
                 B = B + Ju @ ca.diag(ca.DM(qc)) @ Ju.T
         else:
-            F_d, G = model._FG(x, u, dt)
-            f = (model._f(x, u, dt) - x) / dt
+            F_d, G = model.FG_fn(x, u, dt)
+            f = (model.f_fn(x, u, dt) - x) / dt
             B = G @ ca.diag(ca.DM(model.q_psd)) @ G.T / dt**2  # B dt = Q_d
             if qc is not None:
-                Ju = model._Ju(x, u, dt)
+                Ju = model.Ju_fn(x, u, dt)
                 B = B + Ju @ ca.diag(ca.DM(qc)) @ Ju.T / dt**2
         self.continuous = ode is not None
         Jf = ca.jacobian(f, x)
@@ -165,7 +165,7 @@ class Partition:
         # Kalman state as long as the velocity block's own noise B[k, k] does not
         B_dep = np.array([[_depends(B[j, i], x) for i in range(nx)] for j in range(nx)])
         xm = ca.MX.sym("x", nx)
-        Jh = ca.jacobian(model._h(xm), xm)
+        Jh = ca.jacobian(model.h_fn(xm), xm)
         h_dep = np.array(ca.DM(Jh.sparsity(), 1)).astype(bool)
         h_lin = [not _depends(Jh[r, :], xm) for r in range(model.nz)]
 
@@ -205,12 +205,12 @@ class Partition:
         self.rows_kalman = [r for r in range(model.nz) if self.use[r] and r not in self.rows_grid]
         # one-step map, its Jacobian and the discrete noise covariance, in one fast call
         xs, us, dts = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("dt")
-        Fd, Gd = model._FG(xs, us, dts)
+        Fd, Gd = model.FG_fn(xs, us, dts)
         Qd = Gd @ ca.diag(ca.DM(model.q_psd) / dts) @ Gd.T
         if qc is not None:  # evaluated where the filters call it: at their estimate
-            Jud = model._Ju(xs, us, dts)
+            Jud = model.Ju_fn(xs, us, dts)
             Qd = Qd + Jud @ ca.diag(ca.DM(qc) / dts) @ Jud.T
-        step = ca.Function("step", [xs, us, dts], [model._f(xs, us, dts), Fd, Qd])
+        step = ca.Function("step", [xs, us, dts], [model.f_fn(xs, us, dts), Fd, Qd])
         self.step = FastFunction(step)
         # the Kalman rows are affine in x: h_rows(x) = H_rows x + c_rows
         x_ref = np.zeros(nx)

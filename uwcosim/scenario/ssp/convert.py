@@ -45,8 +45,13 @@ class SSPArchive:
             self.cleanup()
             raise
         for name in self.system.ignored:
-            log.warning("%s: parameter %s matches no variable: ignored (SSP 1.0)",
+            log.warning("%s: parameter %s matches no variable: ignored (SSP)",
                         self.path.name, name)
+        if self.system.not_validated:
+            log.warning("%s: %d element(s) or attribute(s) only SSP 2.0 defines were not "
+                        "validated (fmpy has the SSP 1.0 schema only; first: %s)",
+                        self.path.name, len(self.system.not_validated),
+                        self.system.not_validated[0])
 
     def cleanup(self) -> None:
         """Remove the extracted FMUs now (otherwise done at garbage collection or exit)."""

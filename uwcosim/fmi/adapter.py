@@ -21,8 +21,6 @@ from __future__ import annotations
 
 import ctypes
 import os
-import shutil
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -32,6 +30,7 @@ if TYPE_CHECKING:
 
 import numpy as np
 
+from uwcosim.core import scratch
 from uwcosim.core.errors import FMUError, ScenarioError
 from uwcosim.fmi.archive import (
     binary_problems,
@@ -199,7 +198,7 @@ class FMUAdapter:
         if self.unzip_dir is not None:
             return str(unzip(self.path, self.unzip_dir))
         if self._own_unzip is None:
-            self._own_unzip = tempfile.mkdtemp(prefix="uwcosim_fmu_")
+            self._own_unzip = scratch.make("uwcosim_fmu_")
             unzip(self.path, self._own_unzip)
         return self._own_unzip
 
@@ -487,4 +486,4 @@ class FMUAdapter:
                 fmu.freeLibrary() if fmu is not None else None
             except Exception:  # noqa: BLE001
                 pass
-            shutil.rmtree(d, ignore_errors=True)
+            scratch.remove(d)

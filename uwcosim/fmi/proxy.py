@@ -38,7 +38,7 @@ if TYPE_CHECKING:
 
 import numpy as np
 
-from uwcosim.core import process, runguard
+from uwcosim.core import process, runguard, scratch
 from uwcosim.core.errors import FMUError, RunInterrupted, ScenarioError
 from uwcosim.core.paths import PACKAGE_DIR
 from uwcosim.fmi.adapter import FMUAdapter
@@ -59,6 +59,10 @@ class ProxyAdapter:
                  substeps: int = 1, rtol: float = 1e-8, timeout_s: float = 10.0,
                  unzip_dir: str | Path | None = None) -> None:
         self.local = FMUAdapter(name, path, interface, solver, substeps, rtol)
+        self._scratch = None
+        if unzip_dir is None:  # ours, not the worker's: a killed worker cannot remove it
+            self._scratch = scratch.Scratch(self, "uwcosim_fmu_")
+            unzip_dir = self._scratch.path
         self.name, self.path, self.md = name, self.local.path, self.local.md
         self.sha256, self.fmi3 = self.local.sha256, self.local.fmi3
         self.interface, self.nx = interface, self.local.nx
@@ -242,16 +246,20 @@ class ProxyAdapter:
             self._call("reset", 0.0, ("reset",))
 
     def close(self) -> None:
-        if self._proc is None:
-            return
-        if runguard.stop_requested():  # interrupted: no polite terminate
-            self._stop()
-            return
         try:
-            self._call("terminate", 0.0, ("close",))
-        except FMUError:
-            pass
-        self._stop()
+            if self._proc is None:
+                return
+            if runguard.stop_requested():  # interrupted: no polite terminate
+                self._stop()
+                return
+            try:
+                self._call("terminate", 0.0, ("close",))
+            except FMUError:
+                pass
+            self._stop()
+        finally:
+            if self._scratch is not None:
+                self._scratch.cleanup()
 
 
 # -- worker side ------------------------------------------------------------------------------

@@ -36,8 +36,6 @@ Step-by-step API::
 from __future__ import annotations
 
 import math
-import shutil
-import tempfile
 import time
 from collections.abc import Callable
 from multiprocessing import util as mp_util
@@ -45,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from uwcosim.core import scratch
 from uwcosim.core.errors import FMUError, ScenarioError, UwcosimError
 from uwcosim.fmi import vartypes
 from uwcosim.fmi.adapter import FMUAdapter
@@ -64,10 +63,6 @@ from uwcosim.master.sources import (
     sample_sources,
 )
 from uwcosim.master.system import System, Termination
-
-
-def _remove_tree(path: str) -> None:
-    shutil.rmtree(path, ignore_errors=True)
 
 
 class Master(SystemChecks):
@@ -108,8 +103,8 @@ class Master(SystemChecks):
         self.busy: tuple[str, str, float, float] | None = None
         self.adapters: dict[str, FMUAdapter] = {}
         #: the unzipped FMU archives, deleted by close() (or at process exit)
-        self.unzip_root = tempfile.mkdtemp(prefix="uwcosim_fmu_")
-        self._cleanup = mp_util.Finalize(self, _remove_tree, args=(self.unzip_root,),
+        self.unzip_root = scratch.make("uwcosim_fmu_")
+        self._cleanup = mp_util.Finalize(self, scratch.remove, args=(self.unzip_root,),
                                          exitpriority=0)
         try:
             self._build()

@@ -40,6 +40,8 @@ from uwcosim.fmi.archive import (
     unzip,
 )
 from uwcosim.fmi.binding import Binding, make_binding
+from uwcosim.fmi.features import interfaces as fmu_interfaces
+from uwcosim.fmi.features import missing_features
 from uwcosim.fmi.instance import Instance, status_label
 from uwcosim.fmi.solvers import ModelExchange
 from uwcosim.fmi.structure import feedthrough
@@ -86,13 +88,14 @@ class FMUAdapter:
         self.messages: list[str] = []
         #: ``(time, reason)`` once the FMU asked to stop the simulation, else None
         self.terminated: tuple[float, str] | None = None
+        missing = missing_features(self.md)
+        if missing:
+            raise FMUError(f"{self.path}: FMU '{name}' cannot be run: {missing[0]}")
         kind_ = self.md.coSimulation if interface == "cs" else self.md.modelExchange
         if kind_ is None:
-            have = [n for n, k in (("cs", self.md.coSimulation), ("me", self.md.modelExchange))
-                    if k is not None]
             raise FMUError(
                 f"{self.path}: FMU '{name}' does not support interface '{interface}' "
-                f"(it supports: {', '.join(have)})"
+                f"(it supports: {', '.join(fmu_interfaces(self.md))})"
             )
         problems = binary_problems(self.path, self.md, (interface,))
         if problems:

@@ -117,7 +117,7 @@ class ProxyAdapter:
 
     def bind(self, names: list[str] | tuple[str, ...]) -> Binding:
         typed = self.local.bind(names)  # checks the names and types; buffers unused
-        b = Binding.plain(names, typed.kinds, typed.types)
+        b = Binding.plain(names, typed.kinds, typed.types, typed.sizes, typed.wide_pos)
         self._ids[id(b)] = len(self._bindings)
         self._bindings.append(b)
         return b
@@ -211,7 +211,7 @@ class ProxyAdapter:
         if b.n:
             self._sync_bindings(t)
             self._call("set inputs", t, ("set", self._ids[id(b)], b.view.tobytes(), t,
-                                         dict(b.text)))
+                                         dict(b.text), _wide(b)))
 
     def get_outputs(self, b: Binding, t: float) -> np.ndarray:
         if b.n:
@@ -224,6 +224,8 @@ class ProxyAdapter:
                     self._outs.append(i)
             b.view[:] = np.frombuffer(data[0])
             b.text.update(data[1])
+            if data[2]:
+                b.wide[:] = np.frombuffer(data[2], dtype=np.int64)
         return b.view
 
     def do_step(self, t: float, h: float, inputs: Binding,
@@ -237,7 +239,8 @@ class ProxyAdapter:
             self._fn = fn = input_fn
         values, reached, self.terminated = self._call(
             "doStep", t, ("step", t, h, self._ids[id(inputs)], inputs.view.tobytes(),
-                          fn is not None, fn, tuple(self._outs), dict(inputs.text)))
+                          fn is not None, fn, tuple(self._outs), dict(inputs.text),
+                          _wide(inputs)))
         self._fresh = dict(zip(self._outs, values))
         return reached
 
@@ -260,6 +263,21 @@ class ProxyAdapter:
         finally:
             if self._scratch is not None:
                 self._scratch.cleanup()
+
+
+def _wide(b: Binding) -> bytes | None:
+    """The exact 64-bit values a binding's owner gave (None: take them from ``view``)."""
+    return b.wide.tobytes() if b.wide_given and len(b.wide) else None
+
+
+def _take_wide(b: Binding, data: bytes | None) -> None:
+    if data is not None:
+        b.wide[:] = np.frombuffer(data, dtype=np.int64)
+    b.wide_given = data is not None
+
+
+def _answer(b: Binding, view: np.ndarray) -> tuple:
+    return view.tobytes(), dict(b.text), b.wide.tobytes() if len(b.wide) else b""
 
 
 # -- worker side ------------------------------------------------------------------------------
@@ -288,20 +306,22 @@ def _serve(req: Connection, resp: Connection) -> None:
                 b = bindings[msg[1]]
                 b.view[:] = np.frombuffer(msg[2])
                 b.text.update(msg[4])
+                _take_wide(b, msg[5])
                 adapter.set_inputs(b, msg[3])
             elif op == "get":
                 b = bindings[msg[1]]
-                out = (adapter.get_outputs(b, msg[2]).tobytes(), dict(b.text))
+                out = _answer(b, adapter.get_outputs(b, msg[2]))
             elif op == "step":
-                _, t, h, i, values, new_fn, f, outs, text = msg
+                _, t, h, i, values, new_fn, f, outs, text, wide = msg
                 if new_fn:
                     fn = f
                 b = bindings[i]
                 b.view[:] = np.frombuffer(values)
                 b.text.update(text)
+                _take_wide(b, wide)
                 reached = adapter.do_step(t, h, b, fn)
-                out = ([(adapter.get_outputs(bindings[j], reached).tobytes(),
-                         dict(bindings[j].text)) for j in outs], reached, adapter.terminated)
+                out = ([_answer(bindings[j], adapter.get_outputs(bindings[j], reached))
+                        for j in outs], reached, adapter.terminated)
             elif op == "reset":
                 adapter.reset()
             elif op == "close":

@@ -44,7 +44,7 @@ def _element(parent, tag: str, **attrib):
                             {k: v for k, v in attrib.items() if v is not None})
 
 
-def type_name(var, version: str) -> str | None:
+def type_name(var: object, version: str) -> str | None:
     """The SSP type element of an FMU variable: SSP 1.0 names, or (2.0) the variable's own."""
     t = var.type
     if version == "2.0":

@@ -304,7 +304,7 @@ class FlatReader:
                             f"base units; set suppressUnitConversion='true' to connect as is)")
         return d_from[1] / d_to[1], (d_from[2] - d_to[2]) / d_to[1]
 
-    def compose(self, hops, unit: str | None, node0: tuple) -> tuple[float, float]:
+    def compose(self, hops: list, unit: str | None, node0: tuple) -> tuple[float, float]:
         """Affine map ``(F, O)`` of the value along ``hops`` (in the direction of flow)."""
         F, O = 1.0, 0.0
         for _, b, e in hops:

@@ -189,6 +189,11 @@ CASES = [
      2, "key 'estimators.ekf.initial_std.0'"),
     ("unknown-variable", lambda f: [*S('connections=[["vehicle.xx", "dvl.vx"]]'), *FAST], 2,
      "has no variable 'xx'"),
+    ("log-pattern-matches-nothing", lambda f: [*S('log.signals=["vehicle.*", "vehicle.xx"]'),
+                                               *FAST], 2,
+     "key 'log.signals': pattern 'vehicle.xx' matches no signal (nearest: vehicle.x"),
+    ("log-pattern-names-an-input", lambda f: [*S('log.signals=["vehicle.psi"]'), *FAST], 2,
+     "pattern 'vehicle.psi' matches no signal: 'vehicle.psi' has causality 'input'"),
     # -- files --
     ("scenario-missing", lambda f: ["run", str(f["dir"] / "nope.toml")], 2, "not found"),
     ("scenario-not-utf8", lambda f: ["run", str(f["latin1"])], 2, "not a UTF-8 text file"),

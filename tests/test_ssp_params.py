@@ -320,3 +320,20 @@ def test_export_version_is_checked(tmp_path, capsys):
               str(tmp_path / "e.ssp"), "--ssp-version", "3.0"])
     assert info.value.code == 2 and "--ssp-version" in capsys.readouterr().err
     assert not (tmp_path / "e.ssp").exists()
+
+
+def test_export_of_array_parameters_needs_ssp2(event_fmus, tmp_path, capsys):
+    from test_system import scenario
+
+    sc = scenario(tmp_path, {"s": {"path": event_fmus[("Signals", "3.0")],
+                                   "start": {"u": [1.0, 0.5, -2.0], "i64_in": 2**62 + 1}}},
+                  1.0, 0.5)
+    assert main(["ssp", "export", str(sc), "--out", str(tmp_path / "a1.ssp")]) == 0
+    assert "fmus.s: u, i64_in not exported (arrays and integers beyond 32 bits need SSP 2.0" \
+        in capsys.readouterr().out
+    assert load_scenario(tmp_path / "a1.ssp").spec.fmus["s"].start == {}
+    assert main(["ssp", "export", str(sc), "--out", str(tmp_path / "a2.ssp"),
+                 "--ssp-version", "2.0"]) == 0
+    loaded = load_scenario(tmp_path / "a2.ssp")
+    assert loaded.spec.fmus["s"].start == {"u": [1.0, 0.5, -2.0]}
+    assert loaded.spec.fmus["s"].parameters == {"i64_in": 2**62 + 1}

@@ -157,6 +157,12 @@ def export_ssp(loaded: LoadedScenario, out: str | Path,
             notes.append(f"fmus.{name}: {', '.join(unknown)} not exported (role names of the "
                          f"variable map)")
             values = {k: v for k, v in values.items() if k in variables}
+        arrays = [k for k, v in values.items() if isinstance(v, list) or (
+            isinstance(v, int) and not isinstance(v, bool) and not -2**31 <= v < 2**31)]
+        if arrays and version == "1.0":
+            notes.append(f"fmus.{name}: {', '.join(arrays)} not exported (arrays and integers "
+                         f"beyond 32 bits need SSP 2.0: --ssp-version 2.0)")
+            values = {k: v for k, v in values.items() if k not in arrays}
         if values:
             member = f"resources/{name}.ssv"
             files.append((member, _ssv(name, values, variables, version)))

@@ -3,6 +3,6 @@
 The error hierarchy (``errors``), name registries (``registry``), TOML reading (``tomlfile``),
 where files live (``paths``), the cubic B-spline (``bspline``), the RK4 step
 (``integrators``), the master's seeded random streams (``rng``), the Numba binder of the
-compiled kernels (``jit``), child processes (``process``) and the run's signal guard
-(``runguard``). See ``docs/architecture.md``.
+compiled kernels (``jit``), child processes (``process``), the run's scratch folders
+(``scratch``) and the run's signal guard (``runguard``). See ``docs/architecture.md``.
 """

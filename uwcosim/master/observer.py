@@ -42,6 +42,7 @@ class SteppedSystem(Protocol):
     def t(self) -> float: ...
     @property
     def native(self) -> dict[int, object]: ...
+    def signal(self, name: str) -> float: ...
     def measurement(self) -> Measurement: ...
     def value(self, name: str) -> str | int | bool | float: ...
 
@@ -91,8 +92,10 @@ class StepView:
         return self.bus[slots]
 
     def signal(self, name: str) -> float:
-        """The current value of the signal ``name`` as a float."""
-        return float(self.bus[self.slots[name]])
+        """The current value of the signal ``name`` (or array element ``a.y[1]``) as a
+        float."""
+        slot = self.slots.get(name)
+        return float(self.bus[slot]) if slot is not None else self._master.signal(name)
 
     def value(self, name: str) -> str | int | bool | float:
         """The current value of the signal ``name`` as its own type (str, int, bool, float)."""

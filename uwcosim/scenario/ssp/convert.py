@@ -43,8 +43,11 @@ class SSPArchive:
             self.cleanup()
             raise
         for name in self.system.ignored:
-            log.warning("%s: parameter %s matches no variable: ignored (SSP)",
-                        self.path.name, name)
+            if name.endswith(")"):  # says why itself
+                log.warning("%s: %s: ignored (SSP)", self.path.name, name)
+            else:
+                log.warning("%s: parameter %s matches no variable: ignored (SSP)",
+                            self.path.name, name)
         if self.system.not_validated:
             log.warning("%s: %d element(s) or attribute(s) only SSP 2.0 defines were not "
                         "validated (fmpy has the SSP 1.0 schema only; first: %s)",

@@ -7,6 +7,7 @@ TOML values in a scenario or a ``--set`` never give a traceback."""
 from __future__ import annotations
 
 import json
+import re
 import signal
 import zipfile
 from pathlib import Path
@@ -67,6 +68,25 @@ def files(tmp_path_factory, project_fmus) -> dict[str, Path]:
         for item in zin.infolist():
             name = item.filename.replace("x86_64-linux", "aarch64-darwin")
             zout.writestr(name.replace(".so", ".dylib"), zin.read(item))
+    # FMUs that cannot run: FMI 3 clocks, scheduled execution only, a binary that is no library
+    def remake(name, md=None, binary=None):
+        with zipfile.ZipFile(src) as zin, zipfile.ZipFile(d / name, "w") as zout:
+            for item in zin.infolist():
+                data = zin.read(item)
+                if item.filename == "modelDescription.xml" and md is not None:
+                    data = md(data.decode()).encode()
+                if item.filename.endswith(".so") and binary is not None:
+                    data = binary
+                zout.writestr(item, data)
+
+    remake("clocked.fmu", lambda t: t.replace(
+        "<ModelVariables>", '<ModelVariables><Clock name="tick" valueReference="9000" '
+        'causality="input" variability="discrete" intervalVariability="constant" '
+        'intervalDecimal="0.5"/>'))
+    remake("scheduled.fmu", lambda t: re.sub(
+        r"<CoSimulation [^>]*/>", '<ScheduledExecution modelIdentifier="AUVKinematics"/>',
+        re.sub(r"<ModelExchange [^>]*/>", "", t)))
+    remake("junkbin.fmu", binary=b"\x7fELF" + b"\0" * 60)
     # campaign specs
     variant = f'[[variants]]\nname = "v"\nscenario = "{SCEN}"\nset = ["run.duration=5"]\n'
     specs = {
@@ -169,6 +189,11 @@ CASES = [
      2, "key 'estimators.ekf.initial_std.0'"),
     ("unknown-variable", lambda f: [*S('connections=[["vehicle.xx", "dvl.vx"]]'), *FAST], 2,
      "has no variable 'xx'"),
+    ("log-pattern-matches-nothing", lambda f: [*S('log.signals=["vehicle.*", "vehicle.xx"]'),
+                                               *FAST], 2,
+     "key 'log.signals': pattern 'vehicle.xx' matches no signal (nearest: vehicle.x"),
+    ("log-pattern-names-an-input", lambda f: [*S('log.signals=["vehicle.psi"]'), *FAST], 2,
+     "pattern 'vehicle.psi' matches no signal: 'vehicle.psi' has causality 'input'"),
     # -- files --
     ("scenario-missing", lambda f: ["run", str(f["dir"] / "nope.toml")], 2, "not found"),
     ("scenario-not-utf8", lambda f: ["run", str(f["latin1"])], 2, "not a UTF-8 text file"),
@@ -193,6 +218,11 @@ CASES = [
     ("fmu-no-model-description", lambda f: FMU(f, "nomd.fmu"), 3, "nomd.fmu"),
     ("fmu-other-platform", lambda f: FMU(f, "other.fmu"), 3, "no binary for this platform"),
     ("fmu-info-missing", lambda f: ["fmu", "info", str(f["dir"] / "no.fmu")], 3, "no.fmu"),
+    ("fmu-clocks", lambda f: FMU(f, "clocked.fmu"), 3,
+     "cannot be run: it has FMI 3 clocks (tick)"),
+    ("fmu-scheduled-execution-only", lambda f: FMU(f, "scheduled.fmu"), 3,
+     "cannot be run: it needs scheduled execution"),
+    ("fmu-binary-not-a-library", lambda f: FMU(f, "junkbin.fmu"), 3, "cannot instantiate"),
     # -- command-line arguments --
     ("run-no-scenario", lambda f: ["run"], 2, "required: scenario"),
     ("run-seed-not-int", lambda f: ["run", str(SCEN), "--seed", "x"], 2, "--seed"),
@@ -306,6 +336,19 @@ def test_bad_input_is_one_line_and_leaves_a_consistent_state(files, cli, tmp_pat
     assert "Traceback" not in err and expected in lines[0], err
     _consistent(tmp_path / "out")
     _consistent(tmp_path)
+
+
+@pytest.mark.parametrize(("name", "expected"), [
+    ("clocked.fmu", "cannot be run by the master: it has FMI 3 clocks (tick)"),
+    ("scheduled.fmu", "it needs scheduled execution (FMI 3 ScheduledExecution is its only"),
+    ("junkbin.fmu", "AUVKinematics.so cannot be loaded"),
+])
+def test_fmu_check_says_incompatible_for_an_fmu_that_cannot_run(files, cli, name, expected):
+    """``fmu check`` said "compatible" for these (issue 21, item 8)."""
+    status, out, err = cli(["fmu", "check", str(files["dir"] / name), "--role", "vehicle"])
+    assert status == 1, out + err
+    assert "result: INCOMPATIBLE" in out and expected in out, out
+    assert "result: compatible" not in out and "Traceback" not in out + err
 
 
 def test_at_least_sixty_bad_inputs():

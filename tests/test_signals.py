@@ -51,10 +51,10 @@ def _child_tmpdir(tmp_path_factory):
     _CHILD_ENV.clear()
 
 
-def _spawn(*args: str) -> subprocess.Popen:
+def _spawn(*args: str, env: dict | None = None) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "uwcosim", *args], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=_default_sigint, env=_CHILD_ENV or None)
+                            preexec_fn=_default_sigint, env=env or _CHILD_ENV or None)
 
 
 def _children(pid: int) -> dict[int, int]:
@@ -208,8 +208,10 @@ def test_a_hanging_fmu_does_not_block_a_stop(tmp_path, project_fmus, extra, sig,
 
 def test_the_run_wide_watchdog_ends_a_hanging_fmu(tmp_path, project_fmus):
     t0 = time.monotonic()
+    tmp = tmp_path.parent / f"{tmp_path.name}-tmp"  # this run's own temporary folder
+    tmp.mkdir()
     proc = _spawn("run", str(SCEN), "--out", str(tmp_path), "--no-figures", *_hang(),
-                  "--set", "run.fmu_timeout_s=1.0")
+                  "--set", "run.fmu_timeout_s=1.0", env={**_CHILD_ENV, "TMPDIR": str(tmp)})
     _, err = proc.communicate(timeout=120)
     assert time.monotonic() - t0 < 60
     assert proc.returncode == 3, err
@@ -218,6 +220,8 @@ def test_the_run_wide_watchdog_ends_a_hanging_fmu(tmp_path, project_fmus):
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["status"] == "failed" and "run.fmu_timeout_s" in summary["error"]
     assert read_log(tmp_path / "log.parquet")[0]["time"].tolist() == [0.0, 1.0, 2.0, 3.0]
+    # the watchdog ends the process with os._exit: the unzipped FMUs are removed before
+    assert list(tmp.iterdir()) == []
 
 
 CAMPAIGN = """

@@ -363,11 +363,19 @@ def _unsupported_cases(fmus: Path):
             ssd(sys().replace("{tail}", "").replace(
                 "</ssd:Connection>", enum_map + "</ssd:Connection>", 1)),
             "<ssc:EnumerationMappingTransformation>"),
-        "parameter mapping": (
+        "parameter mapping of another type": (
             ssd(sys(head='<ssd:ParameterBindings><ssd:ParameterBinding source="p.ssv">'
-                    '<ssd:ParameterMapping source="m.ssm"/></ssd:ParameterBinding>'
-                    "</ssd:ParameterBindings>").replace("{tail}", "")),
-            "<ssd:ParameterMapping>"),
+                    '<ssd:ParameterMapping type="application/x-other" source="m.ssm"/>'
+                    "</ssd:ParameterBinding></ssd:ParameterBindings>").replace("{tail}", "")),
+            "<ssd:ParameterMapping type='application/x-other'> is not supported"),
+        "SSP 3": (ssd(sys().replace("{tail}", "")).replace(' version="1.0" name=',
+                                                            ' version="3.0" name='),
+                  "version '3.0' is not supported"),
+        "clock connector": (
+            ssd(sys().replace("{tail}", "").replace(
+                '<ssc:Real/></ssd:Connector>', '<ssc:Clock/></ssd:Connector>', 1)).replace(
+                ' version="1.0" name=', ' version="2.0" name='),
+            "clock connectors are not supported"),
         "not an FMU": (
             ssd(sys('<ssd:Component name="tool" type="application/x-ssp-package" '
                     'source="resources/AUVKinematics.fmu"/>').replace("{tail}", "")),
@@ -381,8 +389,9 @@ def _unsupported_cases(fmus: Path):
     }
 
 
-@pytest.mark.parametrize("case", ["signal dictionary", "enumeration mapping", "parameter mapping",
-                                  "not an FMU", "SSP 2", "schema"])
+@pytest.mark.parametrize("case", ["signal dictionary", "enumeration mapping",
+                                  "parameter mapping of another type", "not an FMU", "SSP 2",
+                                  "SSP 3", "clock connector", "schema"])
 def test_unsupported_element_is_one_line_exit_2(project_fmus, tmp_path, capsys, case):
     text, expected = _unsupported_cases(project_fmus)[case]
     path = write_ssp(tmp_path / "u.ssp", text,

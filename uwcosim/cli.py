@@ -6,7 +6,8 @@
 ``uwcosim export RUN --csv|--mat``, ``uwcosim list estimators|scenarios|fmus``, ``uwcosim demo``,
 ``uwcosim fmu build|info|validate|check ...``, ``uwcosim regress RUN BASELINE``,
 ``uwcosim baseline update|check``, ``uwcosim campaign SPEC``, ``uwcosim verify example1``,
-``uwcosim ssp export SCENARIO [--out FILE]``, ``uwcosim completion bash|zsh|tcsh``.
+``uwcosim ssp export SCENARIO [--out FILE] [--ssp-version 1.0|2.0]``,
+``uwcosim completion bash|zsh|tcsh``.
 Every ``--help`` shows the defaults.
 User errors are caught once here: one line on stderr, a non-zero exit status, no traceback.
 
@@ -214,7 +215,7 @@ def _cmd_ssp_export(args) -> int:
 
     loaded = load_scenario(args.scenario, args.set or [], overrides_base=Path.cwd())
     out = Path(args.out) if args.out else Path(f"{loaded.path.stem}.ssp")
-    path, notes = export_ssp(loaded, out)
+    path, notes = export_ssp(loaded, out, version=args.ssp_version)
     for note in notes:
         print(f"note: {note}")
     print(path)
@@ -371,6 +372,9 @@ def build_parser() -> argparse.ArgumentParser:
                       "parameters, default experiment) as an .ssp")
     e.add_argument("scenario", help="scenario .toml (or .ssp)")
     e.add_argument("--out", default=None, help="output file (default: ./<scenario name>.ssp)")
+    e.add_argument("--ssp-version", choices=("1.0", "2.0"), default="1.0",
+                   help="SSP version written: 1.0, or 2.0 (FMI 3 type names on connectors and "
+                        "parameters; default: %(default)s)")
     e.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
     e.set_defaults(func=_cmd_ssp_export)
 

@@ -4,5 +4,6 @@ The error hierarchy (``errors``), name registries (``registry``), TOML reading (
 where files live (``paths``), the cubic B-spline (``bspline``), the RK4 step
 (``integrators``), the master's seeded random streams (``rng``), the Numba binder of the
 compiled kernels (``jit``) and their fixed-order reductions (``reductions``), child processes
-(``process``) and the run's signal guard (``runguard``). See ``docs/architecture.md``.
+(``process``), the run's scratch folders (``scratch``) and the run's signal guard
+(``runguard``). See ``docs/architecture.md``.
 """

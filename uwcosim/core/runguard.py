@@ -19,6 +19,9 @@ in the main thread):
   in this process or in a worker, that lasts longer ends the run as ``failed`` with the log
   kept and exit status 3 (a C call cannot be abandoned, so the process ends).
 
+Before the process ends so, the workers are killed and the run's scratch folders (unzipped
+FMUs, extracted SSP members: :mod:`uwcosim.core.scratch`) removed.
+
 A signal whose disposition is "ignore" when the guard is entered (``nohup``, campaign pool
 workers) stays ignored. Outside the main thread the guard does nothing.
 """
@@ -34,7 +37,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from uwcosim.core import process
+from uwcosim.core import process, scratch
 from uwcosim.core.errors import RunInterrupted
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -211,6 +214,7 @@ class RunGuard:
     @staticmethod
     def _exit(message: str, code: int) -> None:
         process.kill_workers()
+        scratch.remove_all()  # os._exit runs no atexit handler or finalizer
         try:
             print(f"uwcosim: error: {message}", file=sys.stderr, flush=True)
         finally:

@@ -4,8 +4,11 @@
   binary), with the build hint for a missing FMU of the project's own;
 - ``vartypes``: the FMI 2.0 / 3.0 types, value checks and conversions;
 - ``structure``: the model structure (which outputs depend directly on which inputs);
+- ``features``: what an FMU needs that the master does not do (scheduled execution only,
+  FMI 3 clocks);
 - ``varmap``: variable maps of third-party FMUs (roles, units, conventions);
-- ``binding``: value references and typed get/set buffers of a group of variables;
+- ``binding``: value references and typed get/set buffers of a group of variables (FMI 3
+  arrays, exact 64-bit integers);
 - ``instance``: one instantiated FMU (fmpy's object, its C functions, the status checks);
 - ``solvers``: the model-exchange integrators (RK4/DOP853 fast path, CVode with events);
 - ``adapter``: one FMU behind one interface (co-simulation and model exchange, FMI 2.0 and

@@ -6,7 +6,8 @@ co-simulation; ``FMU2Model``, ``FMU3Model`` for model exchange, stepped by
 the archive is checked (:mod:`uwcosim.fmi.archive`) and unzipped once, value references are
 resolved by name once, and :class:`~uwcosim.fmi.binding.Binding` keeps ctypes arrays (with
 numpy views on them) ready so a step costs only the FMI calls themselves. Every FMI 2/3 scalar
-type is handled (:mod:`uwcosim.fmi.vartypes`); FMI 3 arrays as parameters and start values.
+type is handled (:mod:`uwcosim.fmi.vartypes`); FMI 3 arrays as parameters, start values,
+inputs and outputs; FMI 3 structural parameters are set in configuration mode.
 The instantiated FMU is an :class:`~uwcosim.fmi.instance.Instance` (its C functions, component
 and status checks; :attr:`FMUAdapter.instance`), the handle the model-exchange integrator gets;
 the outputs' direct dependencies on the inputs come from :mod:`uwcosim.fmi.structure`.
@@ -21,8 +22,6 @@ from __future__ import annotations
 
 import ctypes
 import os
-import shutil
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -32,6 +31,7 @@ if TYPE_CHECKING:
 
 import numpy as np
 
+from uwcosim.core import scratch
 from uwcosim.core.errors import FMUError, ScenarioError
 from uwcosim.fmi.archive import (
     binary_problems,
@@ -41,11 +41,20 @@ from uwcosim.fmi.archive import (
     unzip,
 )
 from uwcosim.fmi.binding import Binding, make_binding
+from uwcosim.fmi.features import interfaces as fmu_interfaces
+from uwcosim.fmi.features import missing_features
 from uwcosim.fmi.instance import Instance, status_label
 from uwcosim.fmi.solvers import ModelExchange
 from uwcosim.fmi.structure import feedthrough
 from uwcosim.fmi.varmap import VariableMap, resolve_map
-from uwcosim.fmi.vartypes import FLOAT64, coerce, is_continuous_input, kind, type_info
+from uwcosim.fmi.vartypes import (
+    FLOAT64,
+    bindable,
+    coerce,
+    describe,
+    is_continuous_input,
+    type_info,
+)
 
 __all__ = ["Binding", "FMUAdapter", "read_description", "sha256_file"]
 
@@ -87,13 +96,14 @@ class FMUAdapter:
         self.messages: list[str] = []
         #: ``(time, reason)`` once the FMU asked to stop the simulation, else None
         self.terminated: tuple[float, str] | None = None
+        missing = missing_features(self.md)
+        if missing:
+            raise FMUError(f"{self.path}: FMU '{name}' cannot be run: {missing[0]}")
         kind_ = self.md.coSimulation if interface == "cs" else self.md.modelExchange
         if kind_ is None:
-            have = [n for n, k in (("cs", self.md.coSimulation), ("me", self.md.modelExchange))
-                    if k is not None]
             raise FMUError(
                 f"{self.path}: FMU '{name}' does not support interface '{interface}' "
-                f"(it supports: {', '.join(have)})"
+                f"(it supports: {', '.join(fmu_interfaces(self.md))})"
             )
         problems = binary_problems(self.path, self.md, (interface,))
         if problems:
@@ -133,9 +143,10 @@ class FMUAdapter:
                 if v.causality == "output" and v.type in FLOAT64]
 
     def outputs(self) -> list[str]:
-        """Names (as exposed) of the scalar outputs of every supported type."""
+        """Names (as exposed) of the outputs of every supported type, FMI 3 arrays included
+        (not String arrays)."""
         return [n for n, v in self.variables.items() if v.causality == "output"
-                and kind(v) != "unsupported" and not getattr(v, "dimensions", None)]
+                and bindable(v)]
 
     def feedthrough(self) -> dict[str, set[str]]:
         """``{output: {inputs it depends on directly}}`` under the exposed names
@@ -150,10 +161,9 @@ class FMUAdapter:
     def bind(self, names: list[str] | tuple[str, ...]) -> Binding:
         variables = [self.variable(n) for n in names]
         for v in variables:
-            if kind(v) == "unsupported" or getattr(v, "dimensions", None):
+            if not bindable(v):
                 raise FMUError(f"{self.path}: FMU '{self.name}': variable {v.name!r} has type "
-                               f"{v.type}{' (array)' if kind(v) != 'unsupported' else ''}, "
-                               f"which cannot be connected or logged")
+                               f"{describe(v)}, which cannot be connected or logged")
         affine = [self.varmap.affine(n) for n in names]
         b = make_binding(tuple(names), variables, affine, self.fmi3,
                          [self._discrete_input(v) for v in variables])
@@ -199,7 +209,7 @@ class FMUAdapter:
         if self.unzip_dir is not None:
             return str(unzip(self.path, self.unzip_dir))
         if self._own_unzip is None:
-            self._own_unzip = tempfile.mkdtemp(prefix="uwcosim_fmu_")
+            self._own_unzip = scratch.make("uwcosim_fmu_")
             unzip(self.path, self._own_unzip)
         return self._own_unzip
 
@@ -264,6 +274,12 @@ class FMUAdapter:
         fmu = self._inst.fmu
         if not self.fmi3:
             fmu.setupExperiment(startTime=t0)
+        structural = {n: v for n, v in values.items() if self._structural(n)}
+        if structural:  # FMI 3: structural parameters are set in configuration mode
+            fmu.enterConfigurationMode()
+            self.set_values(structural, checked=True)
+            fmu.exitConfigurationMode()
+            values = {n: v for n, v in values.items() if n not in structural}
         self.set_values(values, checked=True)
         if self.fmi3:
             fmu.enterInitializationMode(startTime=t0)
@@ -281,6 +297,11 @@ class FMUAdapter:
                 self._me.initial_event(t0)
             finally:  # a request to stop, even if an error follows it
                 self.terminated = self._me.terminated
+
+    def _structural(self, name: str) -> bool:
+        alias = self.varmap.aliases.get(name)
+        v = (alias.start_var or alias.var) if alias is not None else self.fmu_variables.get(name)
+        return self.fmi3 and v is not None and v.causality == "structuralParameter"
 
     def set_values(self, values: dict, checked: bool = False) -> None:
         """Set parameters/start values of any type by name (setup only, not the hot path)."""
@@ -335,9 +356,9 @@ class FMUAdapter:
         for g in groups:
             b.raw_to_group(g)
             if self.fmi3:
-                st = g.set(self._c, g.vr, g.n, g.buf, g.n)
+                st = g.set(self._c, g.vr, g.nvr, g.buf, g.n)
             else:
-                st = g.set(self._c, g.vr, g.n, g.buf)
+                st = g.set(self._c, g.vr, g.nvr, g.buf)
             self._check(st, "set inputs", t)
 
     def set_continuous(self, b: Binding, t: float) -> None:
@@ -371,9 +392,9 @@ class FMUAdapter:
         if b.groups:
             for g in b.groups:
                 if self.fmi3:
-                    st = g.get(self._c, g.vr, g.n, g.buf, g.n)
+                    st = g.get(self._c, g.vr, g.nvr, g.buf, g.n)
                 else:
-                    st = g.get(self._c, g.vr, g.n, g.buf)
+                    st = g.get(self._c, g.vr, g.nvr, g.buf)
                 self._check(st, "get outputs", t)
             b.groups_to_raw()
             return b.view
@@ -487,4 +508,4 @@ class FMUAdapter:
                 fmu.freeLibrary() if fmu is not None else None
             except Exception:  # noqa: BLE001
                 pass
-            shutil.rmtree(d, ignore_errors=True)
+            scratch.remove(d)

@@ -8,7 +8,10 @@ the folder with ``..`` (it would be extracted outside the FMU's folder), no
 for each interface (FMI 2 ``binaries/linux64``, FMI 3 ``binaries/x86_64-linux``).
 :func:`open_archive` checks the archive and reads its model description, :func:`open_description`
 checks the binaries too; both raise one-line :class:`~uwcosim.core.errors.FMUError` s.
-:func:`unzip` extracts a checked archive. A missing FMU of the project's own
+:func:`unzip` extracts a checked archive. :func:`library_problems`
+loads each binary in a separate process (a library that cannot be loaded, or crashes when
+loaded, is reported, not suffered) and checks that it exports the FMI functions its interfaces
+need (``uwcosim fmu check``). A missing FMU of the project's own
 (:func:`uwcosim.core.paths.is_project_fmu`) is reported with the hint to build it.
 
 A folder that holds an unzipped FMU (``modelDescription.xml`` at its top) is accepted too.
@@ -17,6 +20,8 @@ A folder that holds an unzipped FMU (``modelDescription.xml`` at its top) is acc
 from __future__ import annotations
 
 import hashlib
+import subprocess
+import sys
 import zipfile
 import zlib
 from pathlib import Path, PurePosixPath
@@ -25,6 +30,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from fmpy.model_description import ModelDescription
 
+from uwcosim.core import scratch
 from uwcosim.core.errors import FMUError
 from uwcosim.core.paths import is_project_fmu
 
@@ -120,6 +126,67 @@ def binary_problems(path: str | Path, md: ModelDescription,
             return [f"{path}: no binary for this platform {plat} ({INTERFACE_NAMES[iface]}: "
                     f"expected {lib}; binaries in the archive: {', '.join(found) or 'none'})"]
     return []
+
+
+#: the instantiate function each interface needs, by FMI major version
+_ENTRY = {("2", "cs"): "fmi2Instantiate", ("2", "me"): "fmi2Instantiate",
+          ("3", "cs"): "fmi3InstantiateCoSimulation", ("3", "me"): "fmi3InstantiateModelExchange"}
+_LOAD = ("import ctypes, sys\n"
+         "lib = ctypes.CDLL(sys.argv[1])\n"
+         "missing = [n for n in sys.argv[2:] if not hasattr(lib, n)]\n"
+         "print(' '.join(missing))\n")
+
+
+def library_problems(path: str | Path, md: ModelDescription,
+                     interfaces: tuple[str, ...] = ("cs", "me"),
+                     timeout_s: float = 30.0) -> list[str]:
+    """Problems loading the shared library of each interface in ``interfaces`` (in a child
+    process): it cannot be loaded (not a library, a missing dependency, another architecture),
+    it crashes when loaded, or it does not export the interface's instantiate function."""
+    import fmpy  # lazy: as in read_model
+
+    path = Path(path)
+    if binary_problems(path, md, interfaces):
+        return []  # reported by binary_problems
+    plat = fmpy.platform_tuple if md.fmiVersion.startswith("3") else fmpy.platform
+    major = md.fmiVersion[0]
+    libs: dict[str, list[str]] = {}
+    for iface in interfaces:
+        kind = md.coSimulation if iface == "cs" else md.modelExchange
+        if kind is None:
+            continue
+        lib = f"binaries/{plat}/{kind.modelIdentifier}{fmpy.sharedLibraryExtension}"
+        libs.setdefault(lib, []).append(_ENTRY[(major, iface)])
+    folder = path if path.is_dir() else None
+    tmp = None if folder is not None else scratch.make("uwcosim_lib_")
+    try:
+        out = []
+        for lib, symbols in libs.items():
+            if folder is not None:
+                file = folder / lib
+            else:
+                with zipfile.ZipFile(path) as zf:
+                    zf.extract(lib, tmp)
+                file = Path(tmp) / lib
+            try:
+                r = subprocess.run([sys.executable, "-c", _LOAD, str(file), *symbols],
+                                   capture_output=True, text=True, timeout=timeout_s)
+            except subprocess.TimeoutExpired:
+                out.append(f"{path}: loading {lib} did not finish within {timeout_s:g} s")
+                continue
+            if r.returncode < 0:
+                out.append(f"{path}: loading {lib} crashed the process (signal {-r.returncode})")
+            elif r.returncode:
+                last = (r.stderr.strip().splitlines() or ["unknown error"])[-1]
+                last = last.split(": ", 1)[-1].replace(f"{file}: ", "")
+                out.append(f"{path}: {lib} cannot be loaded ({last})")
+            elif r.stdout.strip():
+                out.append(f"{path}: {lib} does not export {r.stdout.strip()} (not an FMI "
+                           f"{md.fmiVersion} binary?)")
+        return out
+    finally:
+        if tmp is not None:
+            scratch.remove(tmp)
 
 
 def open_archive(path: str | Path) -> ModelDescription:

@@ -38,7 +38,7 @@ if TYPE_CHECKING:
 
 import numpy as np
 
-from uwcosim.core import process, runguard
+from uwcosim.core import process, runguard, scratch
 from uwcosim.core.errors import FMUError, RunInterrupted, ScenarioError
 from uwcosim.core.paths import PACKAGE_DIR
 from uwcosim.fmi.adapter import FMUAdapter
@@ -59,6 +59,10 @@ class ProxyAdapter:
                  substeps: int = 1, rtol: float = 1e-8, timeout_s: float = 10.0,
                  unzip_dir: str | Path | None = None) -> None:
         self.local = FMUAdapter(name, path, interface, solver, substeps, rtol)
+        self._scratch = None
+        if unzip_dir is None:  # ours, not the worker's: a killed worker cannot remove it
+            self._scratch = scratch.Scratch(self, "uwcosim_fmu_")
+            unzip_dir = self._scratch.path
         self.name, self.path, self.md = name, self.local.path, self.local.md
         self.sha256, self.fmi3 = self.local.sha256, self.local.fmi3
         self.interface, self.nx = interface, self.local.nx
@@ -113,7 +117,7 @@ class ProxyAdapter:
 
     def bind(self, names: list[str] | tuple[str, ...]) -> Binding:
         typed = self.local.bind(names)  # checks the names and types; buffers unused
-        b = Binding.plain(names, typed.kinds, typed.types)
+        b = Binding.plain(names, typed.kinds, typed.types, typed.sizes, typed.wide_pos)
         self._ids[id(b)] = len(self._bindings)
         self._bindings.append(b)
         return b
@@ -207,7 +211,7 @@ class ProxyAdapter:
         if b.n:
             self._sync_bindings(t)
             self._call("set inputs", t, ("set", self._ids[id(b)], b.view.tobytes(), t,
-                                         dict(b.text)))
+                                         dict(b.text), _wide(b)))
 
     def get_outputs(self, b: Binding, t: float) -> np.ndarray:
         if b.n:
@@ -220,6 +224,8 @@ class ProxyAdapter:
                     self._outs.append(i)
             b.view[:] = np.frombuffer(data[0])
             b.text.update(data[1])
+            if data[2]:
+                b.wide[:] = np.frombuffer(data[2], dtype=np.int64)
         return b.view
 
     def do_step(self, t: float, h: float, inputs: Binding,
@@ -233,7 +239,8 @@ class ProxyAdapter:
             self._fn = fn = input_fn
         values, reached, self.terminated = self._call(
             "doStep", t, ("step", t, h, self._ids[id(inputs)], inputs.view.tobytes(),
-                          fn is not None, fn, tuple(self._outs), dict(inputs.text)))
+                          fn is not None, fn, tuple(self._outs), dict(inputs.text),
+                          _wide(inputs)))
         self._fresh = dict(zip(self._outs, values))
         return reached
 
@@ -242,16 +249,35 @@ class ProxyAdapter:
             self._call("reset", 0.0, ("reset",))
 
     def close(self) -> None:
-        if self._proc is None:
-            return
-        if runguard.stop_requested():  # interrupted: no polite terminate
-            self._stop()
-            return
         try:
-            self._call("terminate", 0.0, ("close",))
-        except FMUError:
-            pass
-        self._stop()
+            if self._proc is None:
+                return
+            if runguard.stop_requested():  # interrupted: no polite terminate
+                self._stop()
+                return
+            try:
+                self._call("terminate", 0.0, ("close",))
+            except FMUError:
+                pass
+            self._stop()
+        finally:
+            if self._scratch is not None:
+                self._scratch.cleanup()
+
+
+def _wide(b: Binding) -> bytes | None:
+    """The exact 64-bit values a binding's owner gave (None: take them from ``view``)."""
+    return b.wide.tobytes() if b.wide_given and len(b.wide) else None
+
+
+def _take_wide(b: Binding, data: bytes | None) -> None:
+    if data is not None:
+        b.wide[:] = np.frombuffer(data, dtype=np.int64)
+    b.wide_given = data is not None
+
+
+def _answer(b: Binding, view: np.ndarray) -> tuple:
+    return view.tobytes(), dict(b.text), b.wide.tobytes() if len(b.wide) else b""
 
 
 # -- worker side ------------------------------------------------------------------------------
@@ -280,20 +306,22 @@ def _serve(req: Connection, resp: Connection) -> None:
                 b = bindings[msg[1]]
                 b.view[:] = np.frombuffer(msg[2])
                 b.text.update(msg[4])
+                _take_wide(b, msg[5])
                 adapter.set_inputs(b, msg[3])
             elif op == "get":
                 b = bindings[msg[1]]
-                out = (adapter.get_outputs(b, msg[2]).tobytes(), dict(b.text))
+                out = _answer(b, adapter.get_outputs(b, msg[2]))
             elif op == "step":
-                _, t, h, i, values, new_fn, f, outs, text = msg
+                _, t, h, i, values, new_fn, f, outs, text, wide = msg
                 if new_fn:
                     fn = f
                 b = bindings[i]
                 b.view[:] = np.frombuffer(values)
                 b.text.update(text)
+                _take_wide(b, wide)
                 reached = adapter.do_step(t, h, b, fn)
-                out = ([(adapter.get_outputs(bindings[j], reached).tobytes(),
-                         dict(bindings[j].text)) for j in outs], reached, adapter.terminated)
+                out = ([_answer(bindings[j], adapter.get_outputs(bindings[j], reached))
+                        for j in outs], reached, adapter.terminated)
             elif op == "reset":
                 adapter.reset()
             elif op == "close":

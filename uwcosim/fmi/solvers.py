@@ -216,9 +216,9 @@ class ModelExchange:
         def apply() -> None:
             for g, cur in changed:
                 if self.inst.fmi3:
-                    st = g.set(self._c, g.vr, g.n, g.buf, g.n)
+                    st = g.set(self._c, g.vr, g.nvr, g.buf, g.n)
                 else:
-                    st = g.set(self._c, g.vr, g.n, g.buf)
+                    st = g.set(self._c, g.vr, g.nvr, g.buf)
                 self.inst.check(st, "set discrete inputs", t)
                 g.last = cur
 

@@ -18,7 +18,14 @@ Binary, Clock (FMI 3)     -          not supported                       -
 
 Connections: a value may go to a variable of the same kind or a wider one (bool -> int ->
 float); float to int or bool, and anything to or from a string, is refused
-(:func:`connection_problem`).
+(:func:`connection_problem`). Between integer types the ranges are checked too
+(:func:`range_problem`): the source's range (its declared ``min``/``max``, else its type's)
+must fit the destination's, and when only the declaration makes it fit (an Int64 output
+declared ``-100..100`` into an Int8 input) the values are checked at run time.
+
+FMI 3 arrays: :func:`size` values per variable, row-major; an element is named
+``var[i]`` (``var[i,j]`` for more dimensions, 0-based) in signal names (:func:`split_element`,
+:func:`flat_index`; the log's column names are built by :mod:`uwcosim.runlog.columns`).
 """
 
 from __future__ import annotations
@@ -98,6 +105,47 @@ def shape(var: ModelVariable) -> tuple[int, ...]:
     return tuple(getattr(var, "shape", None) or ())
 
 
+def is_array(var: ModelVariable) -> bool:
+    return bool(getattr(var, "dimensions", None))
+
+
+def bindable(var: ModelVariable) -> bool:
+    """Can the master connect and log the variable (a supported type; an array of one that
+    is not String)?"""
+    k = kind(var)
+    return k != "unsupported" and not (k == "string" and is_array(var))
+
+
+def size(var: ModelVariable) -> int:
+    """The number of values of the variable (1 for a scalar)."""
+    return int(np.prod(shape(var))) if is_array(var) else 1
+
+
+def split_element(name: str) -> tuple[str, tuple[int, ...]] | None:
+    """``"y[1]"`` -> ``("y", (1,))``, ``"M[1,2]"`` -> ``("M", (1, 2))``; None if ``name`` does
+    not end with an element index."""
+    if not name.endswith("]") or "[" not in name:
+        return None
+    base, _, idx = name[:-1].rpartition("[")
+    try:
+        index = tuple(int(p) for p in idx.split(","))
+    except ValueError:
+        return None
+    return (base, index) if base else None
+
+
+def flat_index(var: ModelVariable, index: tuple[int, ...]) -> int:
+    """The row-major position of element ``index`` of the array variable ``var``;
+    ValueError saying the valid range otherwise."""
+    dims = shape(var)
+    if len(index) == 1 and len(dims) > 1:  # a flat index into a multi-dimensional array
+        dims = (int(np.prod(dims)),)
+    if len(index) != len(dims) or any(not 0 <= i < d for i, d in zip(index, dims)):
+        raise ValueError(f"index [{','.join(map(str, index))}] is outside the shape "
+                         f"{list(shape(var))} (indices start at 0)")
+    return int(np.ravel_multi_index(index, dims)) if dims else 0
+
+
 def describe(var: ModelVariable) -> str:
     """``Float64``, ``Float64[3]``, ``Enumeration(Mode)``: the type as ``fmu info`` shows it."""
     s = var.type
@@ -126,7 +174,8 @@ def connection_problem(src: ModelVariable, dst: ModelVariable) -> str | None:
             f"({ks} to {kd} would lose information; only bool -> int -> float is allowed)")
 
 
-def _int_range(var) -> tuple[int, int]:
+def int_range(var: ModelVariable) -> tuple[int, int]:
+    """The range of the variable's integer type (Enumeration: Int64's in FMI 3)."""
     t = var.type
     if t in ("Integer", "Int32") or (t == "Enumeration"):
         lo, hi = -(2**31), 2**31 - 1
@@ -137,6 +186,49 @@ def _int_range(var) -> tuple[int, int]:
     if t.startswith("U"):
         return 0, 2**bits - 1
     return -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
+
+
+def declared_range(var: ModelVariable) -> tuple[int, int] | None:
+    """``(lo, hi)`` of an integer variable: its declared ``min``/``max`` within its type's
+    range (None for a non-integer)."""
+    if kind(var) == "bool":
+        return 0, 1
+    if kind(var) != "int":
+        return None
+    lo, hi = int_range(var)
+    for attr, pick in (("min", max), ("max", min)):
+        text = getattr(var, attr, None)
+        if text not in (None, ""):
+            try:
+                v = int(str(text).strip())
+            except ValueError:
+                v = int(float(text))
+            if attr == "min":
+                lo = pick(lo, v)
+            else:
+                hi = pick(hi, v)
+    return lo, hi
+
+
+def range_problem(src: ModelVariable | None, dst: ModelVariable) -> tuple[str | None, bool]:
+    """Whether the values of ``src`` (None: a float source of the master) fit the integer
+    input ``dst``: ``(problem, checked)``; ``problem`` says why not (the source's declared range
+    does not fit), ``checked`` is True when the values must be checked at run time (a float
+    source, or a source whose type's range does not fit but whose declared range does)."""
+    d = declared_range(dst)
+    if d is None or kind(dst) == "bool":
+        return None, False
+    if src is None or kind(src) == "float":
+        return None, True
+    s = declared_range(src)
+    if s is None:
+        return None, False
+    if not (d[0] <= s[0] and s[1] <= d[1]):
+        return (f"the values of {src.type} {src.name!r} ({s[0]}..{s[1]}) do not fit "
+                f"{dst.type} {dst.name!r} ({d[0]}..{d[1]}); declare min/max on the output "
+                f"that fit, or connect it to a wider input"), False
+    t = int_range(src) if kind(src) == "int" else (0, 1)
+    return None, not (d[0] <= t[0] and t[1] <= d[1])
 
 
 def _expected(var) -> str:
@@ -171,7 +263,7 @@ def _scalar(var, value, where: str):
         if isinstance(value, float) and not (math.isfinite(value) and value.is_integer()):
             raise bad(" (not a whole number)")
         value_i = int(value)
-        lo, hi = _int_range(var)
+        lo, hi = int_range(var)
         if not lo <= value_i <= hi:
             raise bad(f" (out of the range {lo}..{hi} of {var.type})")
         return value_i

@@ -1,6 +1,9 @@
 """``uwcosim fmu check FMU --role vehicle [--map MAP]``: can this FMU play a role here?
 
-Four parts, each reported: fmpy validation and the platform binary; capabilities (FMI version,
+Five parts, each reported: fmpy validation, the platform binary and that it loads (in a child
+process) with the FMI functions its interfaces need; what the FMU needs that the master does
+not do (scheduled execution only, FMI 3 clocks: :mod:`uwcosim.fmi.features`); capabilities
+(FMI version,
 co-simulation / model exchange, get/set state, directional derivatives, several instances);
 the variable map (names exist, causality, type, declared units and the conversion); and for
 the vehicle role a short smoke run with constant inputs (heading 0.5 rad, acceleration
@@ -21,7 +24,8 @@ import numpy as np
 from fmpy.validation import validate_fmu
 
 from uwcosim.core.errors import FMUError, ScenarioError
-from uwcosim.fmi.archive import archive_problems, open_archive
+from uwcosim.fmi.archive import archive_problems, library_problems, open_archive
+from uwcosim.fmi.features import missing_features
 from uwcosim.fmi.proxy import ProxyAdapter
 from uwcosim.fmi.varmap import (
     ROLES,
@@ -285,7 +289,17 @@ def check_fmu(path: str | Path, role: str | None = "vehicle", map_file: str | No
     rep.lines.append("  platform binary   " + ("FAILED" if rep.problems else "ok"))
     if rep.problems:
         return rep
+    loading = library_problems(path, md, timeout_s=timeout_s)
+    rep.lines.append("  binary loads      " + ("FAILED" if loading else "ok (FMI functions "
+                                                "exported)"))
+    rep.problems += loading
+    needs = missing_features(md)
+    rep.lines.append("  features          " + ("FAILED" if needs else
+                                                "ok (co-simulation/model exchange, no clocks)"))
+    rep.problems += [f"cannot be run by the master: {n}" for n in needs]
     rep.lines += _capabilities(md)
+    if rep.problems:
+        return rep
     entries, where, prefix = load_entries(map_file, Path.cwd(), str(map_file or path))
     vmap, map_problems = resolve_map(entries, md, role, where, prefix)
     rep.problems += map_problems

@@ -14,6 +14,7 @@ from fmpy.validation import validate_fmu
 
 from uwcosim.core.errors import FMUError
 from uwcosim.fmi.archive import archive_problems, binary_problems, open_archive
+from uwcosim.fmi.features import clock_variables, missing_features
 from uwcosim.fmi.vartypes import describe
 
 
@@ -67,7 +68,10 @@ def fmu_info(path: str | Path) -> str:
     if md.generationTool:
         lines.append(f"  generation tool   {md.generationTool}")
     ifaces = [(name, i) for name, i in (("CoSimulation", md.coSimulation),
-                                        ("ModelExchange", md.modelExchange)) if i is not None]
+                                        ("ModelExchange", md.modelExchange),
+                                        ("ScheduledExecution",
+                                         getattr(md, "scheduledExecution", None)))
+              if i is not None]
     lines.append("  interfaces        " + ", ".join(
         f"{name} ({i.modelIdentifier})" for name, i in ifaces))
     try:
@@ -81,14 +85,24 @@ def fmu_info(path: str | Path) -> str:
     for name, i in ifaces:
         dd = getattr(i, "providesDirectionalDerivatives", None)
         if dd is None:
-            dd = i.providesDirectionalDerivative
+            dd = getattr(i, "providesDirectionalDerivative", None)
         caps = [f"get/set state {_yes(i.canGetAndSetFMUstate)}",
                 f"serialize state {_yes(i.canSerializeFMUstate)}",
                 f"directional derivatives {_yes(dd)}",
                 f"several instances {_yes(not i.canBeInstantiatedOnlyOncePerProcess)}"]
         if name == "CoSimulation":
             caps.append(f"variable step {_yes(i.canHandleVariableCommunicationStepSize)}")
+            if md.fmiVersion.startswith("3"):
+                caps.append(f"event mode {_yes(getattr(i, 'hasEventMode', False))}")
         lines.append(f"  {name + ':':<17} " + ", ".join(caps))
+    clocks = clock_variables(md)
+    if clocks:
+        lines.append(f"  clocks            {', '.join(clocks)}")
+    needs = missing_features(md)
+    lines.append("  uwcosim can run   " + ("yes (from the model description; 'uwcosim fmu check' "
+                                          "also loads the binary)" if not needs and not missing
+                                          else
+                                          "no: " + "; ".join(needs or [missing[0]])))
     lines.append(f"  continuous states {md.numberOfContinuousStates}, event indicators "
                  f"{md.numberOfEventIndicators}")
     ex = md.defaultExperiment

@@ -3,8 +3,9 @@
 The system's types (:mod:`uwcosim.master.system`: ``System``, ``FMU``, ``Control``, ``Noise``,
 ``Sensor``, the loss models), the connection graph (``graph``), one FMU on the bus (``node``),
 the sources (``sources``), the sensors and measurements (``measurement``), the wiring checks
-(``checks``), the stepping loop (``master``) and the observer protocol (``observer``). It
-imports only :mod:`uwcosim.core` and :mod:`uwcosim.fmi`, and knows no scenario.
+and the bus layout (``checks``: arrays, integer ranges, observed locals), the stepping loop
+(``master``) and the observer protocol (``observer``). It imports only :mod:`uwcosim.core`
+and :mod:`uwcosim.fmi`, and knows no scenario.
 
 ``from uwcosim.master import Master, System, FMU, Control, Noise, Sensor`` builds and runs a
 system in code; ``Master.measurement()`` gives the step's :class:`Measurement` from the

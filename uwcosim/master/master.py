@@ -5,13 +5,20 @@ sensors, time grid); the scenario layer converts a scenario into one
 (:func:`uwcosim.scenario.system.to_system`): the master knows no scenario. Time is an integer count
 of base steps: ``t = t0 + k*h``, never accumulated. Each FMU runs at an integer multiple ``period``
 of ``h``; FMUs are stepped Gauss-Seidel in dependency order. Signals live in one flat float64
-array, the *bus*: every FMU output and every source has a slot, and each FMU input reads a slot.
-Integer and Boolean values travel on the bus as float64 (exact up to 2**53); String outputs have a
-slot (NaN) and their text in :attr:`Master.text`. Sources (controls, noise) are sampled from the
-master's seeded streams in chunks as the run goes (memory does not depend on the duration);
-closed-loop sources (waypoints) are evaluated per step. The sensors (sampling, loss, noise, the
-measurement vector) are the master's :class:`~uwcosim.master.measurement.SensorBank`
-(:attr:`Master.sensors`, :meth:`Master.measurement`); one FMU bound to the bus is a
+array, the *bus*: every FMU output (an FMI 3 array: one slot per element) and every source has a
+slot, and each FMU input value reads a slot (the layout and wiring: :mod:`uwcosim.master.checks`).
+Integer and Boolean values are on the bus as float64 (exact up to 2**53); 64-bit integers also
+have an exact copy on the integer side bus :attr:`Master.xbus` (int64; a UInt64 as its bit
+pattern), which is what a 64-bit input connected to one reads, so 2**64 - 1 arrives exactly;
+narrowing integer connections are checked against the declared ranges at load and, where only a
+declaration makes them fit, at each step (a value out of range ends the run). String outputs
+have a slot (NaN) and their text in :attr:`Master.text`. Variables named in the system's
+``observe`` (locals, states) are read after every step like outputs. Sources
+(controls, noise) are sampled from the master's seeded streams in chunks as the run goes
+(memory does not depend on the duration); closed-loop sources (waypoints) are evaluated per
+step. The sensors (sampling, loss, noise, the measurement vector) are the master's
+:class:`~uwcosim.master.measurement.SensorBank` (:attr:`Master.sensors`,
+:meth:`Master.measurement`); one FMU bound to the bus is a
 :class:`~uwcosim.master.node.Node`.
 
 An FMU that asks to stop (FMI 2 ``fmi2Terminated``, FMI 3 ``terminateSimulation``) ends the run:
@@ -36,8 +43,6 @@ Step-by-step API::
 from __future__ import annotations
 
 import math
-import shutil
-import tempfile
 import time
 from collections.abc import Callable
 from multiprocessing import util as mp_util
@@ -45,6 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
+from uwcosim.core import scratch
 from uwcosim.core.errors import FMUError, ScenarioError, UwcosimError
 from uwcosim.fmi import vartypes
 from uwcosim.fmi.adapter import FMUAdapter
@@ -64,10 +70,6 @@ from uwcosim.master.sources import (
     sample_sources,
 )
 from uwcosim.master.system import System, Termination
-
-
-def _remove_tree(path: str) -> None:
-    shutil.rmtree(path, ignore_errors=True)
 
 
 class Master(SystemChecks):
@@ -108,8 +110,8 @@ class Master(SystemChecks):
         self.busy: tuple[str, str, float, float] | None = None
         self.adapters: dict[str, FMUAdapter] = {}
         #: the unzipped FMU archives, deleted by close() (or at process exit)
-        self.unzip_root = tempfile.mkdtemp(prefix="uwcosim_fmu_")
-        self._cleanup = mp_util.Finalize(self, _remove_tree, args=(self.unzip_root,),
+        self.unzip_root = scratch.make("uwcosim_fmu_")
+        self._cleanup = mp_util.Finalize(self, scratch.remove, args=(self.unzip_root,),
                                          exitpriority=0)
         try:
             self._build()
@@ -118,6 +120,11 @@ class Master(SystemChecks):
             raise
 
     # -- construction -----------------------------------------------------------------------
+    @property
+    def unopened(self) -> frozenset[str]:
+        """The FMUs that could not be opened (their problems are in :attr:`problems`)."""
+        return frozenset(self._broken)
+
     @property
     def t(self) -> float:
         return self.t0 + self.k * self.h
@@ -132,18 +139,19 @@ class Master(SystemChecks):
                 self.adapters[name] = self._open(name, f)
             if len(self.problems) > n:
                 self._broken.add(name)
-        self.slots: dict[str, int] = {}
-        self.out_vars: dict[str, object] = {}  # FMU output signal -> its model variable
+        self._init_layout()
         for name, ad in self.adapters.items():
             for out in ad.outputs():
-                self.slots[f"{name}.{out}"] = len(self.slots)
-                self.out_vars[f"{name}.{out}"] = ad.variables[out]
+                self._add_output(name, out)
+        for signal in system.observe:
+            with self._collect():
+                self._observe(signal)
         drivers: dict[str, str] = {}  # input signal -> source name (for error messages)
         self.controls: dict[str, object] = {}
         for cname, c in system.controls.items():
             src = TableControl(c) if c.table is not None else WaypointHeading(c)
             self.controls[cname] = src
-            self.slots[f"controls.{cname}"] = len(self.slots)
+            self._new_slot(f"controls.{cname}")
             with self._collect():
                 if isinstance(src, WaypointHeading):
                     src.pos_slots = [self._numeric_slot(p, f"controls.{cname}.position")
@@ -163,21 +171,22 @@ class Master(SystemChecks):
                 continue
             for i, tgt in enumerate(nz.targets):
                 key = f"noise.{nname}.{i}"
-                self.slots[key] = len(self.slots)
+                self._new_slot(key)
                 with self._collect():
                     self._check_input(tgt, f"noise.{nname}.targets", drivers, key,
                                       float_only=True)
         for sname, s in system.sensors.items():
             for i, tgt in enumerate(s.noise_inputs):
                 key = f"sensornoise.{sname}.{i}"
-                self.slots[key] = len(self.slots)
+                self._new_slot(key)
                 with self._collect():
                     self._check_input(tgt, f"sensors.{sname}.noise_inputs", drivers, key,
                                       float_only=True)
-        self.transforms: dict[str, tuple[float, float]] = {}  # input -> (factor, offset)
         for i, conn in enumerate(system.connections):
             with self._collect():
                 self._check_connection(i, conn, drivers)
+        with self._collect():
+            self._complete_arrays()
         for sname, s in system.sensors.items():
             for o in s.outputs:
                 with self._collect():
@@ -187,7 +196,8 @@ class Master(SystemChecks):
             deps = {n: a.feedthrough() for n, a in self.adapters.items()}
             with self._collect():
                 order = stepping_order(list(self.adapters),
-                                       [(c[0], c[1]) for c in system.connections], deps)
+                                       [(self.variable_of(c[0]), self.variable_of(c[1]))
+                                        for c in system.connections], deps)
         if self.check_only:
             return
         if self.problems:
@@ -196,19 +206,23 @@ class Master(SystemChecks):
                 first.args = (f"{first} (and {len(self.problems) - 1} more; see uwcosim "
                               f"check)",)
             raise first
-        self.bus = np.zeros(len(self.slots))
+        self.bus = np.zeros(self.n_slots)
+        #: the integer side bus: the exact values of the 64-bit integer signals (a UInt64 as
+        #: its bit pattern), at the positions :attr:`exact` gives their bus slots
+        self.xbus = np.zeros(len(self.exact), dtype=np.int64)
         #: text of the String signals, by bus slot
         self.text: dict[int, str] = {}
-        #: exact native values of the String/Int64/UInt64 outputs, by bus slot
-        self.native: dict[int, object] = {}
         self.nodes: list[Node] = [self._node(name) for name in order]
         self._sample_sources()
 
     def _node(self, name: str) -> Node:
+        outs = [k.split(".", 1)[1] for k in self.out_vars if k.split(".", 1)[0] == name]
+        out_slots = [self.slots[f"{name}.{o}"] + e for o in outs
+                     for e in range(vartypes.size(self.out_vars[f"{name}.{o}"]))]
         node = build_node(name, self.adapters[name], self.system.fmus[name].period,
-                          self.drivers, self.slots, self.out_vars, self.transforms)
+                          self.wiring.get(name, {}), outs, out_slots, self.exact)
         if node.adapter.interface == "me":
-            node.input_fn = self._continuous_inputs(node.inputs.names, name)
+            node.input_fn = self._continuous_inputs(node, name)
         return node
 
     def _open(self, name: str, f) -> FMUAdapter | ProxyAdapter:
@@ -235,17 +249,18 @@ class Master(SystemChecks):
         ad.check_values({**f.parameters, **f.start}, f"{self.system.where}: key 'fmus.{name}'")
         return ad
 
-    def _continuous_inputs(self, ins: list[str], name: str) -> Callable | None:
+    def _continuous_inputs(self, node: Node, name: str) -> Callable | None:
         """For ME FMUs: table controls of Real inputs are evaluated at the integrator's stage
         times (discrete inputs are set at communication points only)."""
         pairs = []
         ad = self.adapters[name]
-        for j, i in enumerate(ins):
-            src = self.drivers[f"{name}.{i}"]
+        b = node.inputs
+        for i, pos in zip(b.names, b.offsets):
+            src = self.drivers.get(f"{name}.{i}", "")
             if src.startswith("controls.") and vartypes.is_continuous_input(ad.variables[i]):
                 ctl = self.controls[src.split(".", 1)[1]]
                 if isinstance(ctl, TableControl):
-                    pairs.append((j, ctl))
+                    pairs.append((pos, ctl))
         return StageInputs(pairs) if pairs else None
 
     def _sample_sources(self) -> None:
@@ -281,8 +296,8 @@ class Master(SystemChecks):
                 ctl.reset()
         self._sample_sources()
         self.bus[:] = 0.0
+        self.xbus[:] = 0
         self.text.clear()
-        self.native.clear()
         self.k = 0
         self.observers = []
         self.master_time_s = 0.0
@@ -294,32 +309,63 @@ class Master(SystemChecks):
 
     # -- signals ----------------------------------------------------------------------------
     def signal(self, name: str) -> float:
-        return float(self.bus[self.slots[name]])
+        slot = self.slots.get(name)
+        return float(self.bus[slot if slot is not None else self.slot(name, "signal")])
 
     def signals(self, names: list[str]) -> np.ndarray:
-        return self.bus[[self.slots[n] for n in names]]
+        return self.bus[[self.slots[n] if n in self.slots else self.slot(n, "signal")
+                         for n in names]]
 
     def measurement(self) -> Measurement:
         """The measurement of the current step (:class:`~uwcosim.master.measurement.SensorBank`:
         the measured sensors' outputs with their noise, NaN where not received)."""
         return self.sensors.measure(self.k, self.t, self.bus)
 
+    def value_at(self, slot: int) -> str | int | bool | float | None:
+        """The current value of a bus slot as its own type (None: a slot without a type)."""
+        ex = self.exact.get(slot)
+        if ex is not None:
+            x = self.xbus[ex[0]]
+            return int(x.view(np.uint64)) if ex[1] else int(x)
+        if slot in self.text:
+            return self.text[slot]
+        return None
+
     def value(self, name: str) -> str | int | bool | float:
-        """The current value of a signal as its own type (str, int, bool or float)."""
-        slot = self.slots[name]
+        """The current value of a signal (or array element) as its own type (str, int, bool
+        or float)."""
+        slot = self.slots.get(name)
         var = self.out_vars.get(name)
+        if slot is None:
+            slot = self.slot(name, "value")
+            var = self._element(name, "value")[1]
         if var is None:
             return float(self.bus[slot])
-        if slot in self.native:
-            return self.native[slot]
+        typed = self.value_at(slot)
+        if typed is not None:
+            return typed
         kind = vartypes.kind(var)
         x = self.bus[slot]
-        return int(x) if kind == "int" else bool(x) if kind == "bool" else float(x)
+        return int(x) if kind == "int" else bool(x) if kind == "bool" else \
+            ("" if kind == "string" else float(x))
+
+    @property
+    def native(self) -> dict[int, object]:
+        """The exact values of the String and 64-bit integer signals, by bus slot (built on
+        demand; the recorder reads :attr:`xbus` and :attr:`text` directly)."""
+        out: dict[int, object] = {slot: self.value_at(slot) for slot in self.exact}
+        out.update(self.text)
+        return out
 
     def signal_dtype(self, name: str) -> np.dtype:
-        """numpy dtype of a signal (float64 for sources; the FMI type for FMU outputs)."""
+        """numpy dtype of a signal (float64 for sources; the FMI type for FMU outputs and
+        observed variables, array elements included)."""
         var = self.out_vars.get(name)
-        return np.dtype(np.float64) if var is None else np.dtype(vartypes.numpy_dtype(var))
+        if var is None and name not in self.slots:
+            var = self._element(name, "signal")[1]
+        if var is None:
+            return np.dtype(np.float64)
+        return np.dtype(vartypes.numpy_dtype(var))
 
     # -- running ----------------------------------------------------------------------------
     def initialize(self, start_overrides: dict[str, dict] | None = None) -> None:
@@ -338,7 +384,7 @@ class Master(SystemChecks):
             params = dict(f.parameters)
             params.update((start_overrides or {}).get(name, {}))
             node.set_text(self.text)
-            node.gather(self.bus)
+            node.gather(self.bus, self.xbus, self.t0)
             start = {**f.start, **node.input_values()}  # driven inputs: their driver
             self.busy = (name, "instantiate", self.t0, time.monotonic())
             try:
@@ -348,7 +394,7 @@ class Master(SystemChecks):
             finally:
                 self.busy = None
             node.adapter.set_inputs(node.inputs, self.t0)
-            node.read(self.t0, self.bus, self.native, self.text)
+            node.read(self.t0, self.bus, self.xbus, self.text)
         self._initialized = True
         for node in self.nodes:  # a request to stop in the initial event iteration
             if node.adapter.terminated is not None:
@@ -385,6 +431,7 @@ class Master(SystemChecks):
         c0 = time.perf_counter()
         k = self.k
         self._load_sources(k)
+        t_k = self.t0 + k * self.h
         t_next = self.t0 + (k + 1) * self.h
         fmu_time = 0.0
         for node in self.nodes:
@@ -394,7 +441,7 @@ class Master(SystemChecks):
             a = time.perf_counter()
             if node.str_inputs:
                 node.set_text(self.text)
-            node.gather(self.bus)
+            node.gather(self.bus, self.xbus, t_k)
             ad = node.adapter
             # the step is the difference of two grid times (as fmpy's loop does), so the FMU
             # lands on t_{k+1} without accumulating rounding
@@ -407,7 +454,7 @@ class Master(SystemChecks):
             stop = ad.terminated
             if stop is not None:
                 t_reached = stop[0]
-            node.read(t_next if t_reached is None else t_reached, self.bus, self.native,
+            node.read(t_next if t_reached is None else t_reached, self.bus, self.xbus,
                       self.text)
             dt = time.perf_counter() - a
             node.time_s += dt

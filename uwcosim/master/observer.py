@@ -28,17 +28,21 @@ if TYPE_CHECKING:
 
 class SteppedSystem(Protocol):
     """What a :class:`StepView` reads: the master's state (``k``, ``t = t0 + k*h``, the bus and
-    its names, the native and text values), its measurement and typed values."""
+    its names, the integer side bus and the text values), its measurement and typed values."""
 
     k: int
     h: float
     bus: np.ndarray
+    xbus: np.ndarray
     slots: dict[str, int]
-    native: dict[int, object]
+    exact: dict[int, tuple[int, bool]]
     text: dict[int, str]
 
     @property
     def t(self) -> float: ...
+    @property
+    def native(self) -> dict[int, object]: ...
+    def signal(self, name: str) -> float: ...
     def measurement(self) -> Measurement: ...
     def value(self, name: str) -> str | int | bool | float: ...
 
@@ -46,7 +50,7 @@ class SteppedSystem(Protocol):
 class StepView:
     """A read-only view of a master at its current step (valid during ``on_step``)."""
 
-    __slots__ = ("_master", "bus", "native", "slots", "text")
+    __slots__ = ("_master", "bus", "exact", "slots", "text", "xbus")
 
     def __init__(self, master: SteppedSystem) -> None:
         self._master = master
@@ -55,10 +59,18 @@ class StepView:
         self.bus.flags.writeable = False
         #: signal name -> bus slot
         self.slots: Mapping[str, int] = MappingProxyType(master.slots)
-        #: exact native values of String/Int64/UInt64 outputs, by bus slot
-        self.native: Mapping[int, object] = MappingProxyType(master.native)
+        #: the exact values of the 64-bit integer signals (int64; a UInt64 as its bit
+        #: pattern), not writable; ``exact`` gives each one's bus slot -> (position, unsigned)
+        self.xbus: np.ndarray = master.xbus.view()
+        self.xbus.flags.writeable = False
+        self.exact: Mapping[int, tuple[int, bool]] = MappingProxyType(master.exact)
         #: text of the String outputs, by bus slot
         self.text: Mapping[int, str] = MappingProxyType(master.text)
+
+    @property
+    def native(self) -> dict[int, object]:
+        """The exact values of the String and 64-bit integer signals, by bus slot."""
+        return self._master.native
 
     @property
     def k(self) -> int:
@@ -80,8 +92,10 @@ class StepView:
         return self.bus[slots]
 
     def signal(self, name: str) -> float:
-        """The current value of the signal ``name`` as a float."""
-        return float(self.bus[self.slots[name]])
+        """The current value of the signal ``name`` (or array element ``a.y[1]``) as a
+        float."""
+        slot = self.slots.get(name)
+        return float(self.bus[slot]) if slot is not None else self._master.signal(name)
 
     def value(self, name: str) -> str | int | bool | float:
         """The current value of the signal ``name`` as its own type (str, int, bool, float)."""

@@ -204,6 +204,10 @@ class System:
     #: the sensors whose outputs form the measurement vector ``z``, in order (None: all;
     #: :mod:`uwcosim.master.measurement`)
     measured: list[str] | None = None
+    #: variables that are not outputs to read after every step as signals (``fmu.var``:
+    #: locals, states, parameters; FMI 3 array elements ``fmu.var[i]`` read the whole array);
+    #: names that are outputs already, sources or unknown are left out
+    observe: list[str] = field(default_factory=list)
     #: what an FMU's request to stop means: ``"stop"`` (status terminated) or ``"error"``
     stop_on_terminate: Literal["stop", "error"] = "stop"
     name: str = "system"

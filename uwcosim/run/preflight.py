@@ -7,9 +7,10 @@ the file, the key and what was expected:
    time): the schema, each ``[estimators.NAME]`` against its filter's settings, the
    cross-references that need no FMU;
 2. :func:`check_fmus`: the scenario against the FMUs' model descriptions (variables,
-   causalities, types of connections, start values and parameters, algebraic loops; the
-   master's own checks, run in its collecting mode, :class:`uwcosim.master.master.Master`
-   ``check_only``), and ``model.truth`` outputs;
+   causalities, types, shapes and integer ranges of connections, start values and
+   parameters, algebraic loops; the master's own checks, run in its collecting mode,
+   :class:`uwcosim.master.master.Master` ``check_only``), ``model.truth`` outputs, and the
+   ``[log] signals`` patterns that match no signal;
 3. :func:`check_filters`: the map is read, the filters' model built and every estimator
    constructed at the initial state (what the constructors check: measurement names, grid
    memory, ...).
@@ -30,6 +31,7 @@ from uwcosim.core.errors import UwcosimError
 from uwcosim.filters.base import build
 from uwcosim.master.master import Master
 from uwcosim.run.factory import build_model, scenario_map
+from uwcosim.run.recorder import pattern_problems
 from uwcosim.scenario.load import read_scenario
 from uwcosim.scenario.loaded import LoadedScenario
 from uwcosim.scenario.system import to_system
@@ -69,6 +71,8 @@ def check_fmus(loaded: LoadedScenario) -> list[Problem]:
                     master.slot(s, "model.truth")
                 except UwcosimError as exc:
                     problems.append(Problem.of(exc))
+        problems += [Problem.of(e) for e in
+                     pattern_problems(master, loaded.spec.log.signals, str(loaded.path))]
         return problems
     finally:
         master.close()

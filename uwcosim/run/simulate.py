@@ -53,7 +53,7 @@ from uwcosim.run.bank import EstimatorBank, plans
 from uwcosim.run.density import DensitySnapshots
 from uwcosim.run.divergence import DivergenceCheck, default_bound
 from uwcosim.run.factory import build_model, scenario_map
-from uwcosim.run.recorder import LogRecorder, logged_signals
+from uwcosim.run.recorder import LogRecorder, logged_signals, pattern_problems
 from uwcosim.runlog import RunLogger
 from uwcosim.runlog.columns import LogLayout
 from uwcosim.runlog.rundir import (
@@ -245,6 +245,14 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
         master = Master(to_system(loaded), seed=seed)
     else:
         master.reset(seed)
+    problems = pattern_problems(master, spec.log.signals, str(loaded.path))
+    if problems:  # a bad [log] signals pattern: a scenario error before anything runs
+        if owner:
+            master.close()
+        if len(problems) > 1:
+            problems[0].args = (f"{problems[0]} (and {len(problems) - 1} more; see uwcosim "
+                                f"check)",)
+        raise problems[0]
     log_path = out_dir / LOG_FILE
     logger = recorder = None
     failure: UwcosimError | None = None
@@ -302,7 +310,7 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                 model = build_model(loaded, bathy)
                 bank = _add_estimation(master, loaded, bathy, model)
                 truth = list(spec.model.truth)
-            signals = logged_signals(master.slots, spec.log.signals, truth)
+            signals = logged_signals(master.slots, spec.log.signals, truth, master.shapes)
             layout = LogLayout(
                 tuple(signals),
                 tuple(master.sensors.names) if bank is not None else (),
@@ -323,11 +331,15 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                 meta["map"] = MAP_FILE
             if master.variable_maps():  # third-party FMUs: roles, variables and conversions
                 meta["variable_maps"] = master.variable_maps()
-            dtypes = {c: master.signal_dtype(c) for c in signals if c in master.out_vars}
+            slots = {c: master.slot(c, "log.signals") for c in signals}
+            dtypes = {c: master.signal_dtype(c) for c in signals}
             logger = RunLogger(log_path, layout.columns, layout.flags, meta,
                                spec.log.chunk_steps, dtypes)
-            recorder = LogRecorder(layout, logger, [master.slots[c] for c in signals],
-                                   [master.slots[c] for c in logger.exact_columns])
+            recorder = LogRecorder(
+                layout, logger, [slots[c] for c in signals],
+                [slots[c] for c in logger.exact_columns], master.exact,
+                ["string" if dtypes[c] == np.dtype(object) else "int"
+                 for c in logger.exact_columns])
             # the observers, in the order the master calls them (module docstring)
             if bank is not None:
                 bank.sink = recorder.estimates

@@ -2,7 +2,9 @@
 
 A run's log has one row per communication step, ``time`` first, then
 
-- the logged signals, by their bus names (``vehicle.x``, ``controls.psi``);
+- the logged signals, by their bus names (``vehicle.x``, ``controls.psi``); an FMI 3 array
+  signal one column per element, row-major, ``sig.y[0]``, ``sig.y[1]``... (``sig.M[0,2]`` for
+  more dimensions, 0-based: :func:`element`, :func:`signal_columns`);
 - with estimators: the measurements ``z.NAME`` (NaN when not received), then per estimator
   ``E`` one *block*: its mean ``est.E.STATE`` for every state, its variance
   ``est.E.var.STATE`` for every state, ``est.E.nis`` and ``est.E.nees``;
@@ -18,6 +20,7 @@ figures, the HTML report and the exports.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -25,6 +28,19 @@ from typing import NamedTuple
 TIME = "time"
 _EST = "est."
 _Z = "z."
+
+
+def element(signal: str, index: tuple[int, ...]) -> str:
+    """``sig.y[1]``, ``sig.M[0,2]``: the column of one element of an array signal (0-based)."""
+    return f"{signal}[{','.join(str(i) for i in index)}]"
+
+
+def signal_columns(signal: str, shape: tuple[int, ...] = ()) -> list[str]:
+    """The columns of a signal: its name, or (an array of ``shape``) one per element in
+    row-major order."""
+    if not shape:
+        return [signal]
+    return [element(signal, idx) for idx in itertools.product(*(range(d) for d in shape))]
 
 
 def measurement(name: str) -> str:

@@ -3,7 +3,9 @@
 The master knows no scenario (:mod:`uwcosim.master`): it takes a
 :class:`~uwcosim.master.system.System`. The scenario's FMU, control, noise and sensor records
 are already the system's own types (the schema reuses them), so the conversion copies them and
-adds the time grid, the seed, the measured sensors (``model.sensors``), the folder relative
+adds the time grid, the seed, the measured sensors (``model.sensors``), the variables to read
+although they are not outputs (``observe``: every ``[log] signals`` entry without a wildcard,
+and ``model.truth``: locals and states are logged by their exact names), the folder relative
 paths are resolved against and the file error messages name.
 """
 
@@ -25,6 +27,8 @@ def to_system(loaded: LoadedScenario) -> System:
         connections=[tuple(c) for c in spec.connections], controls=dict(spec.controls),
         noise=dict(spec.noise), sensors=dict(spec.sensors),
         measured=list(spec.model.sensors) if spec.model is not None else [],
+        observe=[p for p in spec.log.signals if not any(c in p for c in "*?")]
+        + (list(spec.model.truth) if spec.model is not None else []),
         stop_on_terminate=spec.run.stop_on_terminate, name=spec.name,
         base_dir=loaded.base_dir, where=str(loaded.path),
     )

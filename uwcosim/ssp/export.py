@@ -1,4 +1,5 @@
-"""Export a scenario's truth side as an SSP 1.0 file (``uwcosim ssp export``).
+"""Export a scenario's truth side as an SSP 1.0 or 2.0 file (``uwcosim ssp export
+[--ssp-version 1.0|2.0]``).
 
 Written: every FMU (``resources/NAME.fmu``) as a component with its interface as the
 ``implementation``, connectors for its connected variables (type and unit from the FMU),
@@ -7,6 +8,11 @@ its parameters and start values as one parameter set ``resources/NAME.ssv``, the
 as the DefaultExperiment, with the communication step in an annotation of type
 ``org.uwcosim`` (SSP 1.0 has no step; other tools ignore the annotation). The archive is
 byte-for-byte reproducible (fixed member dates and order).
+
+SSP 1.0 (the default) types connectors and parameter values with SSP 1.0's names (``Real``,
+``Integer``, ``Boolean``, ``String``, ``Enumeration``); SSP 2.0 (same namespaces,
+``version="2.0"``) with the FMU variable's own type name (FMI 3: ``Float64``, ``Float32``,
+``Int8`` ... ``UInt64``; FMI 2: ``Real``, ``Integer``), and array parameters as value lists.
 
 Not written (SSP has no place for them; listed in the returned notes): controls, noise,
 sensors, estimators, the bathymetry map file, variable maps, and the master's per-FMU settings
@@ -24,7 +30,7 @@ from uwcosim.core.errors import ScenarioError
 from uwcosim.fmi.adapter import read_description
 from uwcosim.fmi.varmap import fmu_unit
 from uwcosim.scenario.loaded import LoadedScenario
-from uwcosim.scenario.ssp.xml import FMU_TYPE, NS, UWC_NS
+from uwcosim.scenario.ssp.xml import FMU_TYPE, INT_TYPES, NS, REAL_TYPES, UWC_NS
 
 _IMPLEMENTATION = {"cs": "CoSimulation", "me": "ModelExchange"}
 _DATE = (1980, 1, 1, 0, 0, 0)
@@ -38,33 +44,59 @@ def _element(parent, tag: str, **attrib):
                             {k: v for k, v in attrib.items() if v is not None})
 
 
-def _typed(parent, prefix: str, value, unit: str | None = None) -> None:
-    if isinstance(value, bool):
-        _element(parent, f"{prefix}:Boolean", value="true" if value else "false")
-    elif isinstance(value, int):
-        _element(parent, f"{prefix}:Integer", value=str(value))
-    elif isinstance(value, float):
-        _element(parent, f"{prefix}:Real", value=repr(value), unit=unit)
-    else:
-        _element(parent, f"{prefix}:String", value=str(value))
+def type_name(var: object, version: str) -> str | None:
+    """The SSP type element of an FMU variable: SSP 1.0 names, or (2.0) the variable's own."""
+    t = var.type
+    if version == "2.0":
+        return t if t in (*REAL_TYPES, *INT_TYPES, "Boolean", "String", "Enumeration") else None
+    if t in REAL_TYPES:
+        return "Real"
+    if t in INT_TYPES:
+        return "Integer"
+    return t if t in ("Boolean", "String", "Enumeration") else None
 
 
-def _ssv(name: str, values: dict, variables: dict) -> bytes:
-    root = etree.Element(f"{{{NS['ssv']}}}ParameterSet", {"version": "1.0", "name": name},
+def _text(x) -> str:
+    if isinstance(x, bool):
+        return "true" if x else "false"
+    return repr(float(x)) if isinstance(x, float) else str(x)
+
+
+def _typed(parent, value, var, version: str) -> None:
+    """One ``ssv`` value element: typed by the variable (or, without one, by the value)."""
+    items = value if isinstance(value, list) else [value]
+    t = type_name(var, version) if var is not None else None
+    if t is None or (t == "Enumeration" and not isinstance(items[0], str)):
+        x = items[0]
+        t = ("Boolean" if isinstance(x, bool) else "Integer" if isinstance(x, int) else
+             "Real" if isinstance(x, float) else "String")
+    if t in REAL_TYPES:
+        items = [float(x) for x in items]
+    unit = fmu_unit(var) if var is not None and t in REAL_TYPES else None
+    if t == "String" and len(items) > 1:
+        el = _element(parent, "ssv:String")
+        for x in items:
+            _element(el, "ssv:Value", value=str(x))
+        return
+    _element(parent, f"ssv:{t}", value=" ".join(_text(x) for x in items), unit=unit)
+
+
+def _ssv(name: str, values: dict, variables: dict, version: str) -> bytes:
+    root = etree.Element(f"{{{NS['ssv']}}}ParameterSet", {"version": version, "name": name},
                          nsmap={"ssv": NS["ssv"]})
     params = _element(root, "ssv:Parameters")
     for pname, value in values.items():
         p = _element(params, "ssv:Parameter", name=pname)
-        v = variables.get(pname)
-        if isinstance(value, int | float) and not isinstance(value, bool) and v is not None \
-                and v.type in ("Real", "Float64", "Float32"):
-            value = float(value)
-        _typed(p, "ssv", value, fmu_unit(v) if v is not None else None)
+        _typed(p, value, variables.get(pname), version)
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
 
 
-def export_ssp(loaded: LoadedScenario, out: str | Path) -> tuple[Path, list[str]]:
-    """Write the truth side of ``loaded`` to ``out``; return the path and what was left out."""
+def export_ssp(loaded: LoadedScenario, out: str | Path,
+               version: str = "1.0") -> tuple[Path, list[str]]:
+    """Write the truth side of ``loaded`` to ``out`` as SSP ``version`` ("1.0" or "2.0");
+    return the path and what was left out."""
+    if version not in ("1.0", "2.0"):
+        raise ScenarioError(f"SSP version {version!r} cannot be written (1.0 or 2.0)")
     spec = loaded.spec
     out = Path(out)
     where = str(loaded.path)
@@ -81,7 +113,7 @@ def export_ssp(loaded: LoadedScenario, out: str | Path) -> tuple[Path, list[str]
             connected.setdefault(fmu, {})[var] = kind
 
     root = etree.Element(f"{{{NS['ssd']}}}SystemStructureDescription",
-                         {"version": "1.0", "name": spec.name},
+                         {"version": version, "name": spec.name},
                          nsmap={"ssd": NS["ssd"], "ssc": NS["ssc"], "ssv": NS["ssv"]})
     system = _element(root, "ssd:System", name=spec.name, description=spec.description or None)
     elements = _element(system, "ssd:Elements")
@@ -113,8 +145,9 @@ def export_ssp(loaded: LoadedScenario, out: str | Path) -> tuple[Path, list[str]
                     raise ScenarioError(f"{where}: FMU {name!r} has no variable {var!r} "
                                         f"(connections)")
                 c = _element(conns, "ssd:Connector", name=var, kind=kind)
-                if v.type in ("Real", "Float64", "Float32"):
-                    _element(c, "ssc:Real", unit=fmu_unit(v))
+                t = type_name(v, version)
+                if t is not None:
+                    _element(c, f"ssc:{t}", unit=fmu_unit(v) if t in REAL_TYPES else None)
         values = {**f.parameters, **f.start}
         unknown = [k for k in values if k not in variables]
         if unknown and f.map is None:
@@ -124,9 +157,15 @@ def export_ssp(loaded: LoadedScenario, out: str | Path) -> tuple[Path, list[str]
             notes.append(f"fmus.{name}: {', '.join(unknown)} not exported (role names of the "
                          f"variable map)")
             values = {k: v for k, v in values.items() if k in variables}
+        arrays = [k for k, v in values.items() if isinstance(v, list) or (
+            isinstance(v, int) and not isinstance(v, bool) and not -2**31 <= v < 2**31)]
+        if arrays and version == "1.0":
+            notes.append(f"fmus.{name}: {', '.join(arrays)} not exported (arrays and integers "
+                         f"beyond 32 bits need SSP 2.0: --ssp-version 2.0)")
+            values = {k: v for k, v in values.items() if k not in arrays}
         if values:
             member = f"resources/{name}.ssv"
-            files.append((member, _ssv(name, values, variables)))
+            files.append((member, _ssv(name, values, variables, version)))
             binds = _element(comp, "ssd:ParameterBindings")
             _element(binds, "ssd:ParameterBinding", source=member)
     if spec.connections:

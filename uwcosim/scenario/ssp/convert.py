@@ -12,15 +12,13 @@ FMUs, connections, parameters, and set ``[run]``.
 from __future__ import annotations
 
 import logging
-import shutil
-import tempfile
-import weakref
 from pathlib import Path
 
 import tomli_w
 from pydantic import ValidationError
 
 from uwcosim.core.errors import ScenarioError
+from uwcosim.core.scratch import Scratch
 from uwcosim.fmi.archive import sha256_file
 from uwcosim.scenario.loaded import LoadedScenario
 from uwcosim.scenario.overrides import apply_override, parse_overrides
@@ -37,20 +35,28 @@ class SSPArchive:
     def __init__(self, path: Path) -> None:
         self.path = Path(path).resolve()
         self.sha256 = sha256_file(self.path)
-        self.dir = Path(tempfile.mkdtemp(prefix="uwcosim-ssp-"))
-        self._finalizer = weakref.finalize(self, shutil.rmtree, str(self.dir), True)
+        self._scratch = Scratch(self, "uwcosim-ssp-")
+        self.dir = Path(self._scratch.path)
         try:
             self.system: FlatSystem = read_ssp(self.path, self.dir)
         except BaseException:
             self.cleanup()
             raise
         for name in self.system.ignored:
-            log.warning("%s: parameter %s matches no variable: ignored (SSP 1.0)",
-                        self.path.name, name)
+            if name.endswith(")"):  # says why itself
+                log.warning("%s: %s: ignored (SSP)", self.path.name, name)
+            else:
+                log.warning("%s: parameter %s matches no variable: ignored (SSP)",
+                            self.path.name, name)
+        if self.system.not_validated:
+            log.warning("%s: %d element(s) or attribute(s) only SSP 2.0 defines were not "
+                        "validated (fmpy has the SSP 1.0 schema only; first: %s)",
+                        self.path.name, len(self.system.not_validated),
+                        self.system.not_validated[0])
 
     def cleanup(self) -> None:
         """Remove the extracted FMUs now (otherwise done at garbage collection or exit)."""
-        self._finalizer()
+        self._scratch.cleanup()
 
 
 def _connections(system: FlatSystem) -> list[list]:

@@ -22,7 +22,7 @@
 #define MAX_EVENT_ITERATIONS 100
 
 static const char *MODE_NAMES[] = {"instantiated", "initialization", "event",
-                                   "continuous-time", "step", "terminated"};
+                                   "continuous-time", "step", "terminated", "configuration"};
 
 double core_time_tol(double t) { return 1e-10 * fmax(1.0, fabs(t)); }
 
@@ -101,6 +101,12 @@ Status core_can_set(Instance *c, const VarDef *v, const char *function) {
     case K_CALC:
         core_log(c, S_ERROR, "%s: variable '%s' (value reference %u) is computed by the FMU and "
                  "cannot be set", function, v->name, v->vr);
+        return S_ERROR;
+    case K_SPARAM:
+        if (c->mode == M_CONFIG) return S_OK;
+        core_log(c, S_ERROR, "%s: variable '%s' (value reference %u) is a structural parameter: "
+                 "it can only be set in Configuration Mode, not in %s mode", function, v->name,
+                 v->vr, MODE_NAMES[c->mode]);
         return S_ERROR;
     case K_PARAM:
     case K_START:

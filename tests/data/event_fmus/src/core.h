@@ -28,10 +28,11 @@ typedef enum {
     K_INPUT,  /* continuous input: set in any mode but terminated */
     K_DINPUT, /* discrete input: never in continuous-time mode */
     K_START,  /* state or output with initial="exact": set before/in initialization mode */
-    K_CALC    /* computed: never set */
+    K_CALC,   /* computed: never set */
+    K_SPARAM  /* FMI 3 structural parameter: set in configuration mode only */
 } VarKind;
 
-typedef enum { M_INSTANTIATED, M_INIT, M_EVENT, M_CONT, M_STEP, M_TERMINATED } Mode;
+typedef enum { M_INSTANTIATED, M_INIT, M_EVENT, M_CONT, M_STEP, M_TERMINATED, M_CONFIG } Mode;
 
 typedef enum { S_OK, S_WARNING, S_DISCARD, S_ERROR } Status;
 

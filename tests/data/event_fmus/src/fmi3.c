@@ -5,8 +5,9 @@
  * inside fmi3DoStep (the FMU declares no event mode); a request to terminate returns
  * terminateSimulation = true with lastSuccessfulTime = the time reached, and earlyReturn = true
  * if that is before the end of the step and the importer allowed early return.
+ * Configuration mode (entered from the instantiated mode) is where structural parameters are set.
  * Not supported (an error status and a log message): FMU states, directional and adjoint
- * derivatives, clocks, binaries, configuration mode, scheduled execution.
+ * derivatives, clocks, binaries, reconfiguration in step mode, scheduled execution.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -376,11 +377,19 @@ fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueRefere
 }
 
 fmi3Status fmi3EnterConfigurationMode(fmi3Instance instance) {
-    return unsupported(instance, "fmi3EnterConfigurationMode");
+    Instance *c = (Instance *)instance;
+    if (core_check_mode(c, MODES(M_INSTANTIATED), "fmi3EnterConfigurationMode") != S_OK)
+        return fmi3Error;
+    c->mode = M_CONFIG;
+    return fmi3OK;
 }
 
 fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance) {
-    return unsupported(instance, "fmi3ExitConfigurationMode");
+    Instance *c = (Instance *)instance;
+    if (core_check_mode(c, MODES(M_CONFIG), "fmi3ExitConfigurationMode") != S_OK)
+        return fmi3Error;
+    c->mode = M_INSTANTIATED;
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance,

@@ -30,7 +30,8 @@ def stepping_order(
     try:
         tuple(TopologicalSorter(var_graph).static_order())
     except CycleError as exc:
-        loop = " -> ".join(reversed(exc.args[1]))
+        # graphlib lists the cycle with each node a predecessor of the next: the data flow
+        loop = " -> ".join(exc.args[1])
         raise AlgebraicLoopError(f"algebraic loop between FMUs: {loop}") from None
     fmu_graph: dict[str, set[str]] = {f: set() for f in fmus}
     for src, dst in connections:

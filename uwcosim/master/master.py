@@ -355,12 +355,19 @@ class Master(SystemChecks):
                 self._stop(node.adapter)
                 break
         self.notify()
+        self._stop_as_error()
 
     def _stop(self, ad) -> None:
-        """Record ``ad``'s request to stop; an error with ``stop_on_terminate = "error"``."""
+        """Record ``ad``'s request to stop (:meth:`_stop_as_error` raises once the step, or the
+        initialization, is complete and observed)."""
         t, reason = ad.terminated
         self.terminated = Termination(ad.name, float(t), str(reason))
-        if self.system.stop_on_terminate == "error":
+
+    def _stop_as_error(self) -> None:
+        """With ``stop_on_terminate = "error"``, a request to stop is an :class:`FMUError`:
+        raised after the observers saw the step (the log keeps the same rows as with
+        ``"stop"``; a stop between two grid times: :meth:`stopped_between_steps`)."""
+        if self.terminated is not None and self.system.stop_on_terminate == "error":
             raise FMUError(f"{self.terminated.message()} (run.stop_on_terminate = \"error\")")
 
     def _load_sources(self, k: int) -> None:
@@ -417,10 +424,12 @@ class Master(SystemChecks):
                 if stop[0] < t_next - 1e-9 * self.h:  # stopped inside the step: not on the grid
                     self._stopped_inside = True
                     self.master_time_s += time.perf_counter() - c0 - fmu_time
+                    self._stop_as_error()
                     return
         self.k = k + 1
         self.master_time_s += time.perf_counter() - c0 - fmu_time
         self.notify()
+        self._stop_as_error()
 
     def view(self) -> StepView:
         """The read-only view of the current step that observers get."""

@@ -362,6 +362,10 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                 guard.wait_for_exit()
             if logger is not None and failure is not None:
                 _flush_steps(bank, recorder)
+                stop = master.terminated
+                if stop is not None and master.stopped_between_steps():
+                    # stop_on_terminate = "error": the same last row as "stop" writes
+                    recorder.final(master.view(), stop.time)
             if guard.signum is not None and failure is not None:
                 failure = RunInterrupted(f"interrupted at t={last_time():g} by "
                                          f"{signal_name(guard.signum)}")

@@ -32,6 +32,7 @@ still has its ``summary.json``.
 
 from __future__ import annotations
 
+import functools
 import json
 import platform
 from dataclasses import dataclass
@@ -76,6 +77,12 @@ PACKAGES = ("uwcosim", "fmpy", "numpy", "scipy", "casadi", "pyarrow")
 
 def package_versions() -> dict[str, str]:
     """Versions of the packages a run depends on (logged in the metadata)."""
+    return dict(_versions())
+
+
+@functools.cache
+def _versions() -> dict[str, str]:
+    # read once per process (importlib.metadata parses every package's METADATA: 8 ms)
     out = {}
     for p in PACKAGES:
         try:

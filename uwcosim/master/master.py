@@ -50,8 +50,15 @@ from uwcosim.fmi import vartypes
 from uwcosim.fmi.adapter import FMUAdapter
 from uwcosim.fmi.proxy import ProxyAdapter
 from uwcosim.fmi.varmap import ROLES, load_entries
+from uwcosim.master.algorithms import (
+    Unit,
+    build_unit,
+    check_loops,
+    coupled_groups,
+    plan_units,
+)
 from uwcosim.master.checks import SystemChecks
-from uwcosim.master.graph import stepping_order
+from uwcosim.master.graph import algebraic_loops, stepping_order
 from uwcosim.master.measurement import Measurement, SensorBank
 from uwcosim.master.node import Node, build_node
 from uwcosim.master.observer import Observer, StepView
@@ -184,10 +191,8 @@ class Master(SystemChecks):
                     self._numeric_slot(o, f"sensors.{sname}.outputs")
         self.drivers = drivers
         if not self.problems:
-            deps = {n: a.feedthrough() for n, a in self.adapters.items()}
             with self._collect():
-                order = stepping_order(list(self.adapters),
-                                       [(c[0], c[1]) for c in system.connections], deps)
+                groups = self._plan()
         if self.check_only:
             return
         if self.problems:
@@ -201,8 +206,87 @@ class Master(SystemChecks):
         self.text: dict[int, str] = {}
         #: exact native values of the String/Int64/UInt64 outputs, by bus slot
         self.native: dict[int, object] = {}
-        self.nodes: list[Node] = [self._node(name) for name in order]
+        nodes = {name: self._node(name) for name in self.adapters}
+        units, loops, coupled = groups
+        #: the units in stepping order (:mod:`uwcosim.master.algorithms`): one FMU each, or the
+        #: FMUs of an algebraic loop, or model-exchange FMUs integrated together
+        self.units: list[Unit] = []
+        for names in units:
+            with self._collect():
+                self.units.append(build_unit(names, nodes, loops, coupled,
+                                             system.loop_tolerance, system.loop_max_iterations))
+        if self.problems:
+            raise self.problems[0]
+        self.nodes: list[Node] = [n for u in self.units for n in u.nodes]
+        #: the algebraic loops solved (:class:`~uwcosim.master.graph.Loop`)
+        self.loops = loops
+        self._jacobi_keep = self._init_keeps() if system.algorithm == "jacobi" else {}
+        #: one FMU per unit, Gauss-Seidel: the plain stepping loop
+        self._plain = system.algorithm == "gauss-seidel" and all(
+            len(u.nodes) == 1 and not u.coupled and u.exchange is None for u in self.units)
         self._sample_sources()
+
+    def _plan(self) -> tuple[list[list[str]], list, list[list[str]]]:
+        """The units in stepping order, the algebraic loops, the coupled ME systems."""
+        system = self.system
+        conns = [(c[0], c[1]) for c in system.connections]
+        deps = {n: a.feedthrough() for n, a in self.adapters.items()}
+        names = list(self.adapters)
+        key = "run.algebraic_loops"
+        if system.algebraic_loops == "error":
+            order = stepping_order(names, conns, deps)  # raises on a loop
+            return [[f] for f in order], [], self._coupled(conns)
+        loops = algebraic_loops(names, conns, deps)
+        in_process = {n for n, a in self.adapters.items() if isinstance(a, FMUAdapter)}
+        periods = {n: f.period for n, f in system.fmus.items()}
+        try:
+            check_loops(loops, periods, in_process)
+            for lp in loops:
+                for signal in lp.variables:
+                    fmu, var = signal.split(".", 1)
+                    v = self.adapters[fmu].variables[var]
+                    if v.causality == "input" and not (
+                            vartypes.kind(v) == "float" and (self.adapters[fmu].interface == "cs"
+                                                             or vartypes.is_continuous_input(v))):
+                        raise ScenarioError(
+                            f"algebraic loop {lp.message()}: {signal!r} is a {v.type} input of "
+                            f"variability {v.variability}; only continuous Real inputs can be "
+                            f"solved for (or break the loop)")
+        except ScenarioError as exc:
+            raise ScenarioError(f"{self._where(key)}: {exc}") from None
+        coupled = self._coupled(conns)
+        return plan_units(names, conns, deps, loops, coupled), loops, coupled
+
+    def _coupled(self, conns: list[tuple[str, str]]) -> list[list[str]]:
+        me = [n for n, a in self.adapters.items()
+              if a.interface == "me" and isinstance(a, FMUAdapter)]
+        return coupled_groups(me, conns, {n: f.period for n, f in self.system.fmus.items()})
+
+    def _init_keeps(self) -> dict[str, set[int]]:
+        """Jacobi: the inputs that keep their start value in initialization (driven by an FMU
+        output, not a direct feedthrough of their FMU: no previous point to take it from)."""
+        keep: dict[str, set[int]] = {}
+        for node in self.nodes:
+            ad = node.adapter
+            direct = {i for ins in ad.feedthrough().values() for i in ins}
+            for j, name in enumerate(node.inputs.names):
+                src = self.drivers[f"{ad.name}.{name}"]
+                if src in self.out_vars and name not in direct:
+                    keep.setdefault(ad.name, set()).add(j)
+        return keep
+
+    def _start_value(self, node: Node, j: int) -> float:
+        """The start value of input ``j`` of ``node`` (the system's, else the FMU's)."""
+        name = node.inputs.names[j]
+        f = self.system.fmus[node.adapter.name]
+        value = f.start.get(name)
+        if value is None:
+            start = getattr(node.adapter.variables[name], "start", None)
+            try:
+                value = float(start) if start is not None else node.inputs.view[j]
+            except (TypeError, ValueError):  # "true"/"false", an enumeration name
+                value = node.inputs.view[j]
+        return float(value) if not isinstance(value, str) else node.inputs.view[j]
 
     def _node(self, name: str) -> Node:
         node = build_node(name, self.adapters[name], self.system.fmus[name].period,
@@ -327,28 +411,24 @@ class Master(SystemChecks):
 
         FMUs are initialized in stepping order; each one's inputs (sources at ``t0`` and the
         outputs of the FMUs before it) are set in initialization mode, with its start values,
-        so that its outputs at ``t0`` already see them (as ``fmpy.simulate_fmu`` does)."""
+        so that its outputs at ``t0`` already see them (as ``fmpy.simulate_fmu`` does). The FMUs
+        of an algebraic loop are held in initialization mode together while the loop is solved
+        (from the loop inputs' start values); model-exchange FMUs integrated together get
+        their joint integrator."""
         t_stop = self.t0 + self.n_steps * self.h
         self.k = 0
         self.terminated = None
         self._load_sources(0)
-        for node in self.nodes:
-            name = node.adapter.name
-            f = self.system.fmus[name]
-            params = dict(f.parameters)
-            params.update((start_overrides or {}).get(name, {}))
-            node.set_text(self.text)
-            node.gather(self.bus)
-            start = {**f.start, **node.input_values()}  # driven inputs: their driver
-            self.busy = (name, "instantiate", self.t0, time.monotonic())
-            try:
-                node.adapter.instantiate(params, start, self.t0, t_stop)
-            except FMUError as exc:
-                raise FMUError(f"{exc} [{self._where(f'fmus.{name}')}]") from None
-            finally:
-                self.busy = None
-            node.adapter.set_inputs(node.inputs, self.t0)
-            node.read(self.t0, self.bus, self.native, self.text)
+        overrides = start_overrides or {}
+        for unit in self.units:
+            ex = unit.init_exchange
+            guesses = ex.unknowns() if ex is not None else set()
+            for node in unit.nodes:
+                self._instantiate(node, overrides, t_stop, guesses, hold=ex is not None)
+            if ex is not None:
+                self._solve_init(unit, ex)
+            for system in unit.coupled:
+                system.start(self.t0, t_stop)
         self._initialized = True
         for node in self.nodes:  # a request to stop in the initial event iteration
             if node.adapter.terminated is not None:
@@ -356,6 +436,54 @@ class Master(SystemChecks):
                 break
         self.notify()
         self._stop_as_error()
+
+    def _instantiate(self, node: Node, overrides: dict, t_stop: float,
+                     guesses: set[tuple[str, str]], hold: bool) -> None:
+        """Instantiate and initialize one FMU (``hold``: leave it in initialization mode)."""
+        name = node.adapter.name
+        f = self.system.fmus[name]
+        params = dict(f.parameters)
+        params.update(overrides.get(name, {}))
+        node.set_text(self.text)
+        node.gather(self.bus)
+        view = node.inputs.view
+        for j in self._jacobi_keep.get(name, ()):  # Jacobi: no previous point to take it from
+            view[j] = self._start_value(node, j)
+        for j, var in enumerate(node.inputs.names):
+            if (name, var) in guesses:  # the guess of an algebraic loop: its start value
+                view[j] = self._start_value(node, j)
+        start = {**f.start, **node.input_values()}  # driven inputs: their driver
+        self.busy = (name, "instantiate", self.t0, time.monotonic())
+        try:
+            node.adapter.instantiate(params, start, self.t0, t_stop, hold=hold) if hold else \
+                node.adapter.instantiate(params, start, self.t0, t_stop)
+        except FMUError as exc:
+            raise FMUError(f"{exc} [{self._where(f'fmus.{name}')}]") from None
+        finally:
+            self.busy = None
+        if hold:
+            return
+        node.adapter.set_inputs(node.inputs, self.t0)
+        node.read(self.t0, self.bus, self.native, self.text)
+
+    def _solve_init(self, unit: Unit, ex) -> None:
+        """The algebraic loops of ``unit`` in initialization mode, then its FMUs leave it."""
+        self.busy = (unit.nodes[0].adapter.name, "initialization (algebraic loop)", self.t0,
+                     time.monotonic())
+        try:
+            ex.run(self.t0, "init")
+            for node in unit.nodes:
+                node.read(self.t0, self.bus, self.native, self.text)
+            for node in unit.nodes:
+                node.adapter.exit_initialization()
+        finally:
+            self.busy = None
+        for node in unit.nodes:
+            node.gather(self.bus)
+            for j in self._jacobi_keep.get(node.adapter.name, ()):
+                node.inputs.view[j] = self._start_value(node, j)
+            node.adapter.set_inputs(node.inputs, self.t0)
+            node.read(self.t0, self.bus, self.native, self.text)
 
     def _stop(self, ad) -> None:
         """Record ``ad``'s request to stop (:meth:`_stop_as_error` raises once the step, or the
@@ -393,6 +521,16 @@ class Master(SystemChecks):
         k = self.k
         self._load_sources(k)
         t_next = self.t0 + (k + 1) * self.h
+        if not self._plain:
+            fmu_time = self._step_units(k, t_next)
+            self.master_time_s += time.perf_counter() - c0 - fmu_time
+            if self._stopped_inside:
+                self._stop_as_error()
+                return
+            self.k = k + 1
+            self.notify()
+            self._stop_as_error()
+            return
         fmu_time = 0.0
         for node in self.nodes:
             p = node.period
@@ -430,6 +568,108 @@ class Master(SystemChecks):
         self.master_time_s += time.perf_counter() - c0 - fmu_time
         self.notify()
         self._stop_as_error()
+
+    # -- units: loops, coupled model exchange, Jacobi (:mod:`uwcosim.master.algorithms`) ------
+    def _step_units(self, k: int, t_next: float) -> float:
+        """One step of the units: Gauss-Seidel (each unit gathers its inputs when its turn
+        comes) or Jacobi (all gather first, from ``t_k``); the FMUs' time spent."""
+        ticking = [u for u in self.units if (k + 1) % u.period == 0]
+        fmu_time = 0.0
+        if self.system.algorithm == "jacobi":
+            reached: dict[int, float] = {}
+            for unit in ticking:
+                self._gather(unit)
+            for unit in ticking:
+                fmu_time += self._advance(unit, k, t_next, reached)
+            for unit in ticking:  # a stop inside the step: that FMU's outputs, the others' at t_k
+                for node in unit.nodes:
+                    stop = node.adapter.terminated
+                    if stop is not None and stop[0] < t_next - 1e-9 * self.h:
+                        node.read(stop[0], self.bus, self.native, self.text)
+                        self._stop(node.adapter)
+                        self._stopped_inside = True
+                        return fmu_time
+            for unit in ticking:
+                fmu_time += self._finish(unit, t_next, reached)
+            return fmu_time
+        for unit in ticking:
+            reached = {}
+            self._gather(unit)
+            fmu_time += self._advance(unit, k, t_next, reached)
+            fmu_time += self._finish(unit, t_next, reached)
+            if self._stopped_inside:
+                break
+        return fmu_time
+
+    def _gather(self, unit: Unit) -> None:
+        for node in unit.nodes:
+            if node.str_inputs:
+                node.set_text(self.text)
+            node.gather(self.bus)
+        for system in unit.coupled:
+            system.exchange.mark_fresh()
+
+    def _advance(self, unit: Unit, k: int, t_next: float, reached: dict[int, float]) -> float:
+        """Step the FMUs of ``unit`` to ``t_next`` (``reached``: the time each reached, by
+        ``id(node)``); the time spent."""
+        a = time.perf_counter()
+        t_start = self.t0 + (k + 1 - unit.period) * self.h
+        for system in unit.coupled:
+            names = system.names
+            self.busy = (names[0], f"doStep (integrated with {', '.join(names[1:])})", t_start,
+                         time.monotonic())
+            try:
+                t_reached = system.integrator.step(t_start, t_next - t_start)
+            finally:
+                self.busy = None
+                for node in system.nodes:
+                    node.adapter.sync_terminated()
+            for node in system.nodes:
+                reached[id(node)] = t_reached
+        for node in unit.single:
+            ad = node.adapter
+            self.busy = (ad.name, "doStep", t_start, time.monotonic())
+            try:
+                t_reached = ad.do_step(t_start, t_next - t_start, node.inputs, node.input_fn)
+            finally:
+                self.busy = None
+            stop = ad.terminated
+            reached[id(node)] = stop[0] if stop is not None else (
+                t_next if t_reached is None else t_reached)
+        dt = time.perf_counter() - a
+        for node in unit.nodes:
+            node.time_s += dt / len(unit.nodes)
+        return dt
+
+    def _finish(self, unit: Unit, t_next: float, reached: dict[int, float]) -> float:
+        """Read the outputs of ``unit`` after its step, record a request to stop, solve its
+        algebraic loops at ``t_next``; the time spent."""
+        a = time.perf_counter()
+        stopped = False
+        for node in unit.nodes:
+            node.read(reached[id(node)], self.bus, self.native, self.text)
+        for node in unit.nodes:
+            stop = node.adapter.terminated
+            if stop is None:
+                continue
+            stopped = True
+            if self.terminated is None:
+                self._stop(node.adapter)
+                if stop[0] < t_next - 1e-9 * self.h:  # inside the step: not on the grid
+                    self._stopped_inside = True
+        if unit.exchange is not None and not stopped:
+            self.busy = (unit.nodes[0].adapter.name, "algebraic loop", t_next,
+                         time.monotonic())
+            try:
+                unit.exchange.run(t_next, "point")
+            finally:
+                self.busy = None
+            for node in unit.nodes:
+                node.read(t_next, self.bus, self.native, self.text)
+        dt = time.perf_counter() - a
+        for node in unit.nodes:
+            node.time_s += dt / len(unit.nodes)
+        return dt
 
     def view(self) -> StepView:
         """The read-only view of the current step that observers get."""
@@ -477,8 +717,15 @@ class Master(SystemChecks):
     def me_solvers(self) -> dict[str, str]:
         """``{fmu: "rk4" | "adaptive" | "cvode"}``: the integrator of each ME FMU (the last one
         used; kept after :meth:`close`: the adapters keep it)."""
-        return {name: ad.solver_used for name, ad in self.adapters.items()
-                if ad.interface == "me" and ad.solver_used is not None}
+        out = {name: ad.solver_used for name, ad in self.adapters.items()
+               if ad.interface == "me" and ad.solver_used is not None}
+        for unit in getattr(self, "units", ()):
+            for system in unit.coupled:
+                if system.integrator is not None:
+                    for name in system.names:
+                        others = ", ".join(n for n in system.names if n != name)
+                        out[name] = f"{system.integrator.solver_name} (integrated with {others})"
+        return out
 
     def fmu_hashes(self) -> dict[str, str]:
         return {n: a.sha256 for n, a in self.adapters.items()}

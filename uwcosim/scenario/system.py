@@ -25,6 +25,8 @@ def to_system(loaded: LoadedScenario) -> System:
         connections=[tuple(c) for c in spec.connections], controls=dict(spec.controls),
         noise=dict(spec.noise), sensors=dict(spec.sensors),
         measured=list(spec.model.sensors) if spec.model is not None else [],
-        stop_on_terminate=spec.run.stop_on_terminate, name=spec.name,
+        stop_on_terminate=spec.run.stop_on_terminate, algorithm=spec.run.algorithm,
+        algebraic_loops=spec.run.algebraic_loops, loop_tolerance=spec.run.loop_tolerance,
+        loop_max_iterations=spec.run.loop_max_iterations, name=spec.name,
         base_dir=loaded.base_dir, where=str(loaded.path),
     )

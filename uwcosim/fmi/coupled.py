@@ -77,6 +77,8 @@ class CoupledModelExchange:
         self.nx_total, self.nz_total = sum(self.nx), sum(self.nz)
         self._with_x = [(m, o, n) for m, o, n in zip(members, self.x_off, self.nx) if n]
         self._with_z = [(m, o, n) for m, o, n in zip(members, self.z_off, self.nz) if n]
+        #: members with discrete inputs (set in event mode when they change)
+        self._discrete = [(m, b) for m, b in zip(members, inputs) if b.discrete_groups]
         self.substeps = max(substeps)
         self.rtol = min(rtols)
         events = any(m.solver_name == "cvode" for m in members) or "cvode" in solvers
@@ -85,6 +87,7 @@ class CoupledModelExchange:
         self.max_step = (t_stop - t0) / 50.0 if t_stop > t0 else math.inf
         self.cvode = None
         self._t = t0
+        self._timed = False  # CVode set the time before the states: an evaluation
         #: ``(time, reason, member index)`` once a member asked to stop, else None
         self.terminated: tuple[float, str, int] | None = None
 
@@ -161,9 +164,10 @@ class CoupledModelExchange:
         their bindings (held over the step); ``exchange`` sets them with the others'."""
         if self.terminated is not None:
             return self.terminated[0]
-        self._set_time(t)
+        if t != self._t:  # else the members are at t since the end of the last step
+            self._set_time(t)
         self.exchange(t, False)
-        if any(m.discrete_changes(b) for m, b in zip(self.members, self.inputs)):
+        if any(m.discrete_changes(b) for m, b in self._discrete):
             self._event(t)  # a discrete input from outside changed: one joint event
             if self.terminated is not None:
                 return self.terminated[0]
@@ -186,6 +190,7 @@ class CoupledModelExchange:
     # -- event-aware (CVode) ------------------------------------------------------------------
     def _cb_set_time(self, t: float) -> None:
         self._set_time(t)
+        self._timed = True
 
     def _cb_get_x(self, p, n) -> None:
         for m, o, k in self._with_x:
@@ -194,7 +199,9 @@ class CoupledModelExchange:
     def _cb_set_x(self, p, n) -> None:
         for m, o, k in self._with_x:
             m.set_states_from(_at(p, o), k)
-        self.exchange(self._t, False)
+        if self._timed:  # an evaluation (else the states CVode reached: exchanged at that time)
+            self._timed = False
+            self.exchange(self._t, False)
 
     def _cb_get_dx(self, p, n) -> None:
         for m, o, k in self._with_x:
@@ -243,7 +250,7 @@ class CoupledModelExchange:
                 state_event, time = self._integrate(time, t_next)
             else:
                 state_event, time = False, t_next
-            # CVode left the states at the time reached but the time at its last evaluation
+            # CVode set the states it reached (no exchange yet): the time and the exchange
             self._set_time(time)
             self.exchange(time, False)
             if state_event:

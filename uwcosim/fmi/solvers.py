@@ -79,7 +79,8 @@ class NoInput:
 def cvode_class():
     """fmpy's CVodeSolver with callbacks that report an FMU error (loaded on first use)."""
     # lazy: fmpy.sundials loads the SUNDIALS libraries, needed only on the event-aware path
-    from fmpy.sundials import CVodeSolver
+    from fmpy.sundials import CVodeSolver, sundials_types
+    from fmpy.sundials import cvode as cv
     from fmpy.sundials.libraries import sundials_core
     from fmpy.sundials.sundials_context import SUNContext_PushErrHandler
     from fmpy.sundials.sundials_types import SUNContext
@@ -91,6 +92,9 @@ def cvode_class():
 
         def __init__(self, **kwargs) -> None:
             super().__init__(**kwargs)
+            self._tret = sundials_types.sunrealtype(0.0)
+            self._tret_ref = ctypes.byref(self._tret)
+            self._no_roots = np.zeros(self.nz, dtype=np.int32)
             # only fmpy's handler (it keeps the message for the exception): SUNDIALS' default
             # one would also print it to stderr, and the CLI's errors are one line
             clear = sundials_core.SUNContext_ClearErrHandlers
@@ -111,6 +115,22 @@ def cvode_class():
             except Exception as exc:  # noqa: BLE001
                 self.error = exc
                 return -1
+
+        def step(self, t, tNext):
+            """fmpy's step (the same calls) without its per-call allocations."""
+            if not self.discrete:
+                self.get_x(self.px, self.nx)
+            flag = cv.CVode(self.cvode_mem, tNext, self.x, self._tret_ref, cv.CV_NORMAL)
+            if not self.discrete:
+                self.set_x(self.px, self.nx)
+            if flag == cv.CV_ROOT_RETURN:
+                roots = np.zeros(self.nz, dtype=np.int32)
+                if cv.CVodeGetRootInfo(self.cvode_mem, np.ctypeslib.as_ctypes(roots)) != 0:
+                    raise RuntimeError("CVodeGetRootInfo failed")
+                return True, roots, self._tret.value
+            if flag < 0:
+                raise RuntimeError(f"CVode error (flag {flag}): {self.error_info}")
+            return flag > 0, self._no_roots, self._tret.value
 
     return CVode
 
@@ -357,28 +377,28 @@ class ModelExchange:
             self._input_fn(t, self._inputs.view)
             self._set_continuous(self._inputs, t)
 
-    def get_states_into(self, p, n) -> None:
+    def get_states_into(self, p: object, n: int) -> None:
         """getContinuousStates into the C array ``p`` (CVode's callbacks: pointer, size)."""
         st = self._get_states(self._c, p, n)
         if st > 1:
             self.inst.check(st, "getContinuousStates", self._t)
 
-    def set_states_from(self, p, n) -> None:
+    def set_states_from(self, p: object, n: int) -> None:
         st = self._set_states(self._c, p, n)
         if st > 1:
             self.inst.check(st, "setContinuousStates", self._t)
 
-    def get_derivatives_into(self, p, n) -> None:
+    def get_derivatives_into(self, p: object, n: int) -> None:
         st = self._get_der(self._c, p, n)
         if st > 1:
             self.inst.check(st, "getDerivatives", self._t)
 
-    def get_indicators_into(self, p, n) -> None:
+    def get_indicators_into(self, p: object, n: int) -> None:
         st = self._get_z(self._c, p, n)
         if st > 1:
             self.inst.check(st, "getEventIndicators", self._t)
 
-    def get_nominals_into(self, p, n) -> None:
+    def get_nominals_into(self, p: object, n: int) -> None:
         self.inst.check(self._get_nominals(self._c, p, n), "getNominalsOfContinuousStates",
                         self._t)
 

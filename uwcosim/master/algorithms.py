@@ -26,6 +26,7 @@ communication point after they stepped and in initialization mode, by an
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 from uwcosim.core.errors import ScenarioError
@@ -49,9 +50,25 @@ class CoupledSystem:
     #: the joint integrator of the current run (made by :meth:`start`)
     integrator: CoupledModelExchange | None = None
 
+    @functools.cached_property
+    def fresh(self) -> set[int]:
+        """``id`` of the members whose outputs the last exchange of a step read at its end."""
+        return {id(self.nodes[i]) for i in self.exchange.fresh_members()}
+
+    @functools.cached_property
+    def gathered(self) -> list[Node]:
+        """The members with an input from outside the system (gathered from the bus at each
+        step; the others' inputs are all set by the exchange)."""
+        return [self.nodes[i] for i in self.exchange.outside_members()]
+
     @property
     def names(self) -> list[str]:
         return [n.adapter.name for n in self.nodes]
+
+    @functools.cached_property
+    def call(self) -> str:
+        """The FMU call in progress while it steps (for the run-wide watchdog)."""
+        return f"doStep (integrated with {', '.join(self.names[1:])})"
 
     def start(self, t0: float, t_stop: float) -> None:
         """A new joint integrator over the members' integrators (after their initialization)."""
@@ -76,6 +93,14 @@ class Unit:
     coupled: list[CoupledSystem] = field(default_factory=list)
     #: the members stepped on their own
     single: list[Node] = field(default_factory=list)
+
+    @functools.cached_property
+    def gathered(self) -> list[Node]:
+        """The members whose inputs are gathered from the bus at each step (all but those of a
+        coupled system whose every input comes from inside it: its exchange sets them)."""
+        inside = {id(n) for s in self.coupled for n in s.nodes}
+        keep = {id(n) for s in self.coupled for n in s.gathered}
+        return [n for n in self.nodes if id(n) not in inside or id(n) in keep]
 
 
 def coupled_groups(me_fmus: list[str], connections: list[tuple[str, str]],

@@ -314,6 +314,38 @@ class Exchange:
                                             np.array([lk[5] for lk in group])))
         self._late = [m for m in members if m.late]
         self._fresh = True
+        # does anything come from outside the group (an input not driven by a member, a table
+        # control at the integrator's stages)? If not, a new step changes no input
+        driven = {(lk[0], lk[1]) for lk in links}
+        # (a String input counts as from outside: its text travels on the bus, not here)
+        self._from_outside = [i for i, m in enumerate(members) if m.node.input_fn is not None
+                              or m.node.str_inputs
+                              or any((i, j) not in driven for j in range(m.node.inputs.n))]
+        self._outside = bool(self._from_outside)
+        self._plain = self._compile() if not self.loops else None
+
+    def _compile(self) -> list[tuple]:
+        """The right-hand-side pass without loops as a flat list of operations: ``(pulls,
+        set, get)`` per visit, a pull ``(dst view, dst index, src view, src index, f, o)``."""
+        ops = []
+
+        def pulls(m: _Member, feeds: list[_Feed]) -> list[tuple]:
+            out = []
+            for f in feeds:
+                src = self.members[f.src].node.outputs.view
+                out += [(m.node.inputs.view, int(d), src, int(i), float(a), float(b))
+                        for d, i, a, b in zip(f.dst, f.idx, f.factor, f.offset)]
+            return out
+
+        for st in self.stages:
+            m = self.members[st]
+            node = m.node
+            setter = node.adapter.set_continuous if (m.early or node.input_fn) else None
+            getter = node.adapter.get_outputs if m.needed else None
+            ops.append((pulls(m, m.early), node, setter, getter))
+        for m in self._late:
+            ops.append((pulls(m, m.late), m.node, m.node.adapter.set_continuous, None))
+        return ops
 
     @property
     def loops(self) -> list[LoopStage]:
@@ -333,6 +365,16 @@ class Exchange:
         """:meth:`run` as a joint integrator calls it (``event``: in event mode)."""
         return self.run(t, "event" if event else "rhs")
 
+    def fresh_members(self) -> list[int]:
+        """The members whose outputs binding :meth:`run` leaves read at its time (those that
+        drive a member, those of a loop): their outputs need no other get at that time."""
+        return [i for i, m in enumerate(self.members)
+                if m.needed or any(m in st.members for st in self.loops)]
+
+    def outside_members(self) -> list[int]:
+        """The members with an input from outside the group (or a table at stage times)."""
+        return list(self._from_outside)
+
     def mark_fresh(self) -> None:
         """The next :meth:`run` sets every input of every member once (a new step: the inputs
         from outside were gathered again)."""
@@ -350,6 +392,20 @@ class Exchange:
     def run(self, t: float, mode: str) -> bool:
         """Set the members' inputs from each other's outputs at ``t``; True if a discrete
         input changed (``mode = "event"``)."""
+        if self._fresh and mode == "rhs" and not self._outside:
+            self._fresh = False  # a new step, nothing from outside: all set as it was
+            return False
+        if self._plain is not None and mode == "rhs" and not self._fresh:
+            for pulls, node, setter, getter in self._plain:
+                for dst, d, src, i, f, o in pulls:
+                    dst[d] = src[i] * f + o
+                if node.input_fn is not None:
+                    node.input_fn(t, node.inputs.view)
+                if setter is not None:
+                    setter(node.inputs, t)
+                if getter is not None:
+                    getter(node.outputs, t)
+            return False
         members, fresh = self.members, self._fresh or mode != "rhs"
         self._fresh = False
         changed = False

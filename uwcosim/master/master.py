@@ -4,7 +4,11 @@ The master's input is a :class:`~uwcosim.master.system.System` (FMUs, connection
 sensors, time grid); the scenario layer converts a scenario into one
 (:func:`uwcosim.scenario.system.to_system`): the master knows no scenario. Time is an integer count
 of base steps: ``t = t0 + k*h``, never accumulated. Each FMU runs at an integer multiple ``period``
-of ``h``; FMUs are stepped Gauss-Seidel in dependency order. Signals live in one flat float64
+of ``h``; FMUs are stepped by the algorithm the system names (:mod:`uwcosim.master.algorithms`:
+Gauss-Seidel in dependency order, or Jacobi), in units: one FMU, or the FMUs of an algebraic
+loop (solved by :mod:`uwcosim.master.loops`), or model-exchange FMUs integrated together
+(:mod:`uwcosim.fmi.coupled`); with Gauss-Seidel and one FMU per unit, the plain loop of
+:meth:`Master.step`. Signals live in one flat float64
 array, the *bus*: every FMU output and every source has a slot, and each FMU input reads a slot.
 Integer and Boolean values travel on the bus as float64 (exact up to 2**53); String outputs have a
 slot (NaN) and their text in :attr:`Master.text`. Sources (controls, noise) are sampled from the
@@ -499,7 +503,8 @@ class Master(SystemChecks):
             raise FMUError(f"{self.terminated.message()} (run.stop_on_terminate = \"error\")")
 
     def _load_sources(self, k: int) -> None:
-        self.bus[self.source_slots] = self.sources.row(k)
+        if self.source_slots.size:
+            self.bus[self.source_slots] = self.sources.row(k)
         self.sensors.load_inputs(k, self.bus)
         for slot, ctl in self.dynamic:
             x, y = self.bus[ctl.pos_slots]
@@ -573,59 +578,69 @@ class Master(SystemChecks):
     def _step_units(self, k: int, t_next: float) -> float:
         """One step of the units: Gauss-Seidel (each unit gathers its inputs when its turn
         comes) or Jacobi (all gather first, from ``t_k``); the FMUs' time spent."""
-        ticking = [u for u in self.units if (k + 1) % u.period == 0]
-        fmu_time = 0.0
-        if self.system.algorithm == "jacobi":
-            reached: dict[int, float] = {}
+        ticking = [u for u in self.units if not (k + 1) % u.period]
+        reached: dict[int, tuple[float, bool]] = {}
+        clock = time.perf_counter
+        if self.system.algorithm != "jacobi":
+            a = clock()
             for unit in ticking:
                 self._gather(unit)
-            for unit in ticking:
-                fmu_time += self._advance(unit, k, t_next, reached)
-            for unit in ticking:  # a stop inside the step: that FMU's outputs, the others' at t_k
-                for node in unit.nodes:
-                    stop = node.adapter.terminated
-                    if stop is not None and stop[0] < t_next - 1e-9 * self.h:
-                        node.read(stop[0], self.bus, self.native, self.text)
-                        self._stop(node.adapter)
-                        self._stopped_inside = True
-                        return fmu_time
-            for unit in ticking:
-                fmu_time += self._finish(unit, t_next, reached)
-            return fmu_time
+                self._advance(unit, k, t_next, reached)
+                self._finish(unit, t_next, reached)
+                if self._stopped_inside:
+                    break
+            return self._share(ticking, clock() - a)
+        a = clock()
         for unit in ticking:
-            reached = {}
             self._gather(unit)
-            fmu_time += self._advance(unit, k, t_next, reached)
-            fmu_time += self._finish(unit, t_next, reached)
-            if self._stopped_inside:
-                break
-        return fmu_time
+        for unit in ticking:
+            self._advance(unit, k, t_next, reached)
+        for unit in ticking:  # a stop inside the step: that FMU's outputs, the others' at t_k
+            for node in unit.nodes:
+                stop = node.adapter.terminated
+                if stop is not None and stop[0] < t_next - 1e-9 * self.h:
+                    node.read(stop[0], self.bus, self.native, self.text)
+                    self._stop(node.adapter)
+                    self._stopped_inside = True
+                    return self._share(ticking, clock() - a)
+        for unit in ticking:
+            self._finish(unit, t_next, reached)
+        return self._share(ticking, clock() - a)
+
+    @staticmethod
+    def _share(units: list[Unit], dt: float) -> float:
+        """Split the FMUs' time of a step among the FMUs that stepped (equal shares)."""
+        n = sum(len(u.nodes) for u in units)
+        for unit in units:
+            for node in unit.nodes:
+                node.time_s += dt / n
+        return dt
 
     def _gather(self, unit: Unit) -> None:
-        for node in unit.nodes:
+        for node in unit.gathered:
             if node.str_inputs:
                 node.set_text(self.text)
             node.gather(self.bus)
         for system in unit.coupled:
             system.exchange.mark_fresh()
 
-    def _advance(self, unit: Unit, k: int, t_next: float, reached: dict[int, float]) -> float:
-        """Step the FMUs of ``unit`` to ``t_next`` (``reached``: the time each reached, by
-        ``id(node)``); the time spent."""
-        a = time.perf_counter()
+    def _advance(self, unit: Unit, k: int, t_next: float, reached: dict) -> None:
+        """Step the FMUs of ``unit`` to ``t_next`` (``reached``: by ``id(node)``, the time it
+        reached and whether its outputs binding was read there already)."""
         t_start = self.t0 + (k + 1 - unit.period) * self.h
         for system in unit.coupled:
-            names = system.names
-            self.busy = (names[0], f"doStep (integrated with {', '.join(names[1:])})", t_start,
-                         time.monotonic())
+            self.busy = (system.nodes[0].adapter.name, system.call, t_start, time.monotonic())
             try:
                 t_reached = system.integrator.step(t_start, t_next - t_start)
             finally:
                 self.busy = None
-                for node in system.nodes:
-                    node.adapter.sync_terminated()
+                if system.integrator.terminated is not None:
+                    for node in system.nodes:
+                        node.adapter.sync_terminated()
+            # the exchange at the end of the step read the outputs of the fresh ones at t_next
+            fresh = system.fresh if system.integrator.terminated is None else ()
             for node in system.nodes:
-                reached[id(node)] = t_reached
+                reached[id(node)] = (t_reached, id(node) in fresh)
         for node in unit.single:
             ad = node.adapter
             self.busy = (ad.name, "doStep", t_start, time.monotonic())
@@ -634,21 +649,16 @@ class Master(SystemChecks):
             finally:
                 self.busy = None
             stop = ad.terminated
-            reached[id(node)] = stop[0] if stop is not None else (
-                t_next if t_reached is None else t_reached)
-        dt = time.perf_counter() - a
-        for node in unit.nodes:
-            node.time_s += dt / len(unit.nodes)
-        return dt
+            reached[id(node)] = (stop[0] if stop is not None else (
+                t_next if t_reached is None else t_reached), False)
 
-    def _finish(self, unit: Unit, t_next: float, reached: dict[int, float]) -> float:
+    def _finish(self, unit: Unit, t_next: float, reached: dict) -> None:
         """Read the outputs of ``unit`` after its step, record a request to stop, solve its
-        algebraic loops at ``t_next``; the time spent."""
-        a = time.perf_counter()
+        algebraic loops at ``t_next``."""
         stopped = False
         for node in unit.nodes:
-            node.read(reached[id(node)], self.bus, self.native, self.text)
-        for node in unit.nodes:
+            t_reached, fresh = reached[id(node)]
+            node.read(t_reached, self.bus, self.native, self.text, fresh=fresh)
             stop = node.adapter.terminated
             if stop is None:
                 continue
@@ -666,10 +676,6 @@ class Master(SystemChecks):
                 self.busy = None
             for node in unit.nodes:
                 node.read(t_next, self.bus, self.native, self.text)
-        dt = time.perf_counter() - a
-        for node in unit.nodes:
-            node.time_s += dt / len(unit.nodes)
-        return dt
 
     def view(self) -> StepView:
         """The read-only view of the current step that observers get."""

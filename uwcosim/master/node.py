@@ -9,6 +9,7 @@ the master's tables; the master steps the nodes (:mod:`uwcosim.master.master`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -43,7 +44,7 @@ class Node:
 
     def gather(self, bus: np.ndarray) -> None:
         """Copy this FMU's inputs from the bus (``factor * value + offset`` where given)."""
-        np.take(bus, self.in_slots, out=self.inputs.view)
+        bus.take(self.in_slots, out=self.inputs.view)  # the method: no dispatch wrapper
         if self.in_affine is not None:
             self.inputs.view *= self.in_affine[0]
             self.inputs.view += self.in_affine[1]
@@ -67,12 +68,16 @@ class Node:
                          else float(x))
         return out
 
-    def read(self, t: float, bus: np.ndarray, native: dict, text: dict) -> None:
+    def read(self, t: float, bus: np.ndarray, native: dict, text: dict,
+             fresh: bool = False) -> None:
         """Read the outputs at ``t`` onto the bus (exact values into ``native``, the text of
-        String outputs into ``text``); a non-finite numeric output is an :class:`FMUError`."""
-        out = self.adapter.get_outputs(self.outputs, t)
+        String outputs into ``text``); a non-finite numeric output is an :class:`FMUError`.
+        ``fresh``: the outputs binding was just read at ``t`` (by an exchange): no FMI call."""
+        out = self.outputs.view if fresh else self.adapter.get_outputs(self.outputs, t)
         num = out if self.numeric is None else out[self.numeric]
-        if not np.all(np.isfinite(num)):
+        # one sum is cheaper than an elementwise test; a NaN or an infinity shows in it (an
+        # overflow of finite values too: then the elementwise test finds nothing)
+        if not math.isfinite(num.sum()) and not np.all(np.isfinite(num)):
             names = self.outputs.names if self.numeric is None else \
                 [self.outputs.names[j] for j in self.numeric]
             bad = [n for n, v in zip(names, num) if not np.isfinite(v)]

@@ -68,6 +68,25 @@ def test_loop_through_a_linear_transformation(event_fmus, tmp_path):
                                rtol=1e-12)
 
 
+@pytest.mark.parametrize("interface", ["cs", "me"])
+def test_a_one_way_link_beside_a_loop_is_passed_on(event_fmus, tmp_path, interface):
+    """Two Feedthrough FMUs in a Real loop (a.yk = k a.u, b.y = b.u, a.u = b.y + 1: x = 1 for
+    k = 0.5) and, between the same two, a one-way Integer feedthrough a.iy -> b.iu: not an
+    unknown of the loop, passed on after it is solved (same row as a.iy)."""
+    ft = event_fmus[("Feedthrough", "3.0")]
+    fmus = {"a": {"path": ft, "interface": interface, "parameters": {"k": 0.5}},
+            "b": {"path": ft, "interface": interface}}
+    conns = [("a.yk", "b.u"), ("b.y", "a.u", {"offset": 1.0}), ("a.iy", "b.iu")]
+    controls = {"i": {"target": "a.iu", "table": [[0.0, 0.0], [0.25, 3.0]],
+                      "interpolation": "hold"}}
+    sc = scenario(tmp_path, fmus, 0.5, 0.1, connections=conns, controls=controls)
+    rc, cols, _ = run(sc, tmp_path / "r")
+    assert rc == 0
+    np.testing.assert_allclose(cols["b.y"], 1.0, rtol=1e-10)
+    np.testing.assert_array_equal(cols["b.iy"], cols["a.iy"])
+    assert cols["a.iy"][-1] == 3
+
+
 def equation_pair(event_fmus, version, interface="cs"):
     """OMSimulator's equationPair: 2 x1^2 + 5 x2 = 42 (equation1: x1 in, x2 out) and
     x1 - 6 x2 = 4 (equation2: x2 in, x1 out), as two of our Polynomial FMUs."""

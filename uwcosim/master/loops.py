@@ -62,6 +62,7 @@ class _Member:
         self.name = node.adapter.name
         self.early: list[_Feed] = []  # from members visited before (or solved in its stage)
         self.late: list[_Feed] = []  # through states, from members visited at or after it
+        self.post: list[_Feed] = []  # direct, inside its loop stage but off the cycle
         self.needed = False  # its outputs drive a member
 
     def pull(self, feeds: list[_Feed], members: list[_Member]) -> None:
@@ -273,6 +274,7 @@ class Exchange:
             done.add(c)
         stage_of: dict[int, int] = {}
         solved: set[tuple[int, int]] = set()  # (member, input index) a loop stage solves for
+        post: set[tuple[int, int]] = set()  # direct inputs inside a loop stage, off its cycle
         #: the stages: a member index (set its inputs, read its outputs) or a LoopStage
         self.stages: list[int | LoopStage] = []
         for s, c in enumerate(order):
@@ -285,6 +287,16 @@ class Exchange:
                 self.stages.append(comp[0])
                 continue
             names = {m.name for m in (members[i] for i in comp)}
+
+            def on_cycle(lk: tuple) -> bool:  # both ends in one strongly connected variable set
+                src = f"{members[lk[2]].name}.{members[lk[2]].node.outputs.names[lk[3]]}"
+                dst = f"{members[lk[0]].name}.{members[lk[0]].node.inputs.names[lk[1]]}"
+                return any(src in lp.variables and dst in lp.variables for lp in loops)
+
+            # the unknowns: the connections on a cycle; the other direct ones inside the
+            # stage (one way: no cycle) are passed on once the loop is solved
+            post |= {(lk[0], lk[1]) for lk in inner if not on_cycle(lk)}
+            inner = [lk for lk in inner if on_cycle(lk)]
             for lk in inner:
                 node = members[lk[0]].node
                 var = node.adapter.variables[node.inputs.names[lk[1]]]
@@ -305,8 +317,9 @@ class Exchange:
             for src in sorted({lk[2] for lk in links if lk[0] == i}):
                 mine = [lk for lk in links if lk[0] == i and lk[2] == src]
                 early = [lk for lk in mine if stage_of[src] < stage_of[i] or (i, lk[1]) in solved]
-                late = [lk for lk in mine if lk not in early]
-                for group, target in ((early, m.early), (late, m.late)):
+                after = [lk for lk in mine if (i, lk[1]) in post]
+                late = [lk for lk in mine if lk not in early and lk not in after]
+                for group, target in ((early, m.early), (after, m.post), (late, m.late)):
                     if group:
                         target.append(_Feed(src, np.array([lk[1] for lk in group], np.intp),
                                             np.array([lk[3] for lk in group], np.intp),
@@ -416,10 +429,17 @@ class Exchange:
                 for m, *_ in st.parts:
                     m.pull(m.early, members)
                     changed = self._set(m, t, mode) or changed
-                u = st.solve(st.guess() if u0 is None else u0, t)
-                st.keep(u)
+                u = st.solve(st.guess() if u0 is None else u0, t) if st.n else u0
+                if st.n:
+                    st.keep(u)
                 for m, *_ in st.parts:
                     m.node.adapter.get_outputs(m.node.outputs, t)
+                after = [m for m, *_ in st.parts if m.post]
+                for _ in after:  # one-way links between them: as many passes as members
+                    for m in after:
+                        m.pull(m.post, members)
+                        changed = self._set(m, t, mode) or changed
+                        m.node.adapter.get_outputs(m.node.outputs, t)
                 continue
             m = members[st]
             if m.early or fresh or m.node.input_fn is not None:

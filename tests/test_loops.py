@@ -216,8 +216,9 @@ def test_loops_as_errors_name_the_loop_along_the_flow(event_fmus, tmp_path, caps
     assert main(["run", str(sc), "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
-    assert "algebraic loop between FMUs: " in err
-    loop = err.split("algebraic loop between FMUs: ")[1].split(" -> ")
+    assert "key 'connections': algebraic loop between FMUs: " in err
+    assert err.endswith('(run.algebraic_loops = "error")')
+    loop = err.split("algebraic loop between FMUs: ")[1].split(" (")[0].split(" -> ")
     flow = set(LOOP) | {("p1.u", "p1.y"), ("p2.u", "p2.y")}
     assert all(edge in flow for edge in zip(loop, loop[1:])), loop
 

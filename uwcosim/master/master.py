@@ -49,7 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uwcosim.core.errors import FMUError, ScenarioError, UwcosimError
+from uwcosim.core.errors import AlgebraicLoopError, FMUError, ScenarioError, UwcosimError
 from uwcosim.fmi import vartypes
 from uwcosim.fmi.adapter import FMUAdapter
 from uwcosim.fmi.proxy import ProxyAdapter
@@ -238,7 +238,11 @@ class Master(SystemChecks):
         names = list(self.adapters)
         key = "run.algebraic_loops"
         if system.algebraic_loops == "error":
-            order = stepping_order(names, conns, deps)  # raises on a loop
+            try:
+                order = stepping_order(names, conns, deps)
+            except AlgebraicLoopError as exc:
+                raise AlgebraicLoopError(f"{self._where('connections')}: {exc} "
+                                         f"(run.algebraic_loops = \"error\")") from None
             return [[f] for f in order], [], self._coupled(conns)
         loops = algebraic_loops(names, conns, deps)
         in_process = {n for n, a in self.adapters.items() if isinstance(a, FMUAdapter)}

@@ -30,10 +30,12 @@ import functools
 from dataclasses import dataclass, field
 
 from uwcosim.core.errors import ScenarioError
+from uwcosim.fmi import vartypes
 from uwcosim.fmi.coupled import CoupledModelExchange
-from uwcosim.master.graph import Loop, merge_groups, unit_order
+from uwcosim.master.graph import Loop, algebraic_loops, merge_groups, stepping_order, unit_order
 from uwcosim.master.loops import Exchange
 from uwcosim.master.node import Node
+from uwcosim.master.system import FMU, System
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
 #: a loop inside a joint integration is solved to ``min(loop_tolerance, this * rtol)``
@@ -120,9 +122,66 @@ def coupled_groups(me_fmus: list[str], connections: list[tuple[str, str]],
     return [[f for f in me_fmus if f in g] for g in groups if len(g) > 1]
 
 
-def check_loops(loops: list[Loop], periods: dict[str, int], in_process: set[str]) -> None:
-    """A loop the master cannot solve: FMUs of different periods, or one in a worker."""
+def plan(system: System, adapters: dict, in_process: set[str]
+         ) -> tuple[list[list[str]], list[Loop], list[list[str]]]:
+    """The units of a system in stepping order, its algebraic loops and its coupled ME systems
+    (``adapters``: the FMUs by name; ``in_process``: those not in a worker process).
+    :class:`~uwcosim.core.errors.AlgebraicLoopError` for a loop with ``algebraic_loops =
+    "error"``, :class:`~uwcosim.core.errors.ScenarioError` for a loop that cannot be solved."""
+    conns = [(c[0], c[1]) for c in system.connections]
+    deps = {n: a.feedthrough() for n, a in adapters.items()}
+    names = list(adapters)
+    periods = {n: f.period for n, f in system.fmus.items()}
+    me = [n for n, a in adapters.items() if a.interface == "me" and n in in_process]
+    coupled = coupled_groups(me, conns, periods)
+    if system.algebraic_loops == "error":
+        return [[f] for f in stepping_order(names, conns, deps)], [], coupled
+    loops = algebraic_loops(names, conns, deps)
+    check_loops(loops, periods, in_process, adapters)
+    return plan_units(names, conns, deps, loops, coupled), loops, coupled
+
+
+def jacobi_keeps(nodes: list[Node], drivers: dict[str, str], outputs: dict) -> dict[str, set]:
+    """Jacobi's initialization: per FMU, the inputs that keep their start value (driven by an
+    FMU output, not a direct feedthrough of their FMU: there is no previous point)."""
+    keep: dict[str, set[int]] = {}
+    for node in nodes:
+        ad = node.adapter
+        direct = {i for ins in ad.feedthrough().values() for i in ins}
+        for j, name in enumerate(node.inputs.names):
+            if drivers[f"{ad.name}.{name}"] in outputs and name not in direct:
+                keep.setdefault(ad.name, set()).add(j)
+    return keep
+
+
+def start_value(node: Node, fmu: FMU, j: int) -> float:
+    """The start value of input ``j`` of ``node``: the system's (``fmu.start``), else the
+    FMU's declared one, else what its binding holds."""
+    name = node.inputs.names[j]
+    value = fmu.start.get(name)
+    if value is None:
+        start = getattr(node.adapter.variables[name], "start", None)
+        try:
+            value = float(start) if start is not None else node.inputs.view[j]
+        except (TypeError, ValueError):  # "true"/"false", an enumeration name
+            value = node.inputs.view[j]
+    return float(value) if not isinstance(value, str) else float(node.inputs.view[j])
+
+
+def check_loops(loops: list[Loop], periods: dict[str, int], in_process: set[str],
+                adapters: dict) -> None:
+    """A loop the master cannot solve: through an input that is not a continuous Real, between
+    FMUs of different periods, through an FMU in a worker process."""
     for lp in loops:
+        for signal in lp.variables:
+            fmu, var = signal.split(".", 1)
+            ad = adapters[fmu]
+            v = ad.variables[var]
+            if v.causality == "input" and not (vartypes.kind(v) == "float" and (
+                    ad.interface == "cs" or vartypes.is_continuous_input(v))):
+                raise ScenarioError(f"algebraic loop {lp.message()}: {signal!r} is a {v.type} "
+                                    f"input of variability {v.variability}; only continuous "
+                                    f"Real inputs can be solved for (or break the loop)")
         per = {periods[f] for f in lp.fmus}
         if len(per) > 1:
             raise ScenarioError(f"algebraic loop {lp.message()}: its FMUs have different "

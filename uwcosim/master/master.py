@@ -54,15 +54,8 @@ from uwcosim.fmi import vartypes
 from uwcosim.fmi.adapter import FMUAdapter
 from uwcosim.fmi.proxy import ProxyAdapter
 from uwcosim.fmi.varmap import ROLES, load_entries
-from uwcosim.master.algorithms import (
-    Unit,
-    build_unit,
-    check_loops,
-    coupled_groups,
-    plan_units,
-)
+from uwcosim.master.algorithms import Unit, build_unit, jacobi_keeps, plan, start_value
 from uwcosim.master.checks import SystemChecks
-from uwcosim.master.graph import algebraic_loops, stepping_order
 from uwcosim.master.measurement import Measurement, SensorBank
 from uwcosim.master.node import Node, build_node
 from uwcosim.master.observer import Observer, StepView
@@ -224,77 +217,24 @@ class Master(SystemChecks):
         self.nodes: list[Node] = [n for u in self.units for n in u.nodes]
         #: the algebraic loops solved (:class:`~uwcosim.master.graph.Loop`)
         self.loops = loops
-        self._jacobi_keep = self._init_keeps() if system.algorithm == "jacobi" else {}
+        self._jacobi_keep = jacobi_keeps(self.nodes, self.drivers, self.out_vars) \
+            if system.algorithm == "jacobi" else {}
         #: one FMU per unit, Gauss-Seidel: the plain stepping loop
         self._plain = system.algorithm == "gauss-seidel" and all(
             len(u.nodes) == 1 and not u.coupled and u.exchange is None for u in self.units)
         self._sample_sources()
 
     def _plan(self) -> tuple[list[list[str]], list, list[list[str]]]:
-        """The units in stepping order, the algebraic loops, the coupled ME systems."""
-        system = self.system
-        conns = [(c[0], c[1]) for c in system.connections]
-        deps = {n: a.feedthrough() for n, a in self.adapters.items()}
-        names = list(self.adapters)
-        key = "run.algebraic_loops"
-        if system.algebraic_loops == "error":
-            try:
-                order = stepping_order(names, conns, deps)
-            except AlgebraicLoopError as exc:
-                raise AlgebraicLoopError(f"{self._where('connections')}: {exc} "
-                                         f"(run.algebraic_loops = \"error\")") from None
-            return [[f] for f in order], [], self._coupled(conns)
-        loops = algebraic_loops(names, conns, deps)
+        """The units in stepping order, the algebraic loops, the coupled ME systems
+        (:func:`uwcosim.master.algorithms.plan`), errors naming the key."""
         in_process = {n for n, a in self.adapters.items() if isinstance(a, FMUAdapter)}
-        periods = {n: f.period for n, f in system.fmus.items()}
         try:
-            check_loops(loops, periods, in_process)
-            for lp in loops:
-                for signal in lp.variables:
-                    fmu, var = signal.split(".", 1)
-                    v = self.adapters[fmu].variables[var]
-                    if v.causality == "input" and not (
-                            vartypes.kind(v) == "float" and (self.adapters[fmu].interface == "cs"
-                                                             or vartypes.is_continuous_input(v))):
-                        raise ScenarioError(
-                            f"algebraic loop {lp.message()}: {signal!r} is a {v.type} input of "
-                            f"variability {v.variability}; only continuous Real inputs can be "
-                            f"solved for (or break the loop)")
-        except ScenarioError as exc:
-            raise ScenarioError(f"{self._where(key)}: {exc}") from None
-        coupled = self._coupled(conns)
-        return plan_units(names, conns, deps, loops, coupled), loops, coupled
-
-    def _coupled(self, conns: list[tuple[str, str]]) -> list[list[str]]:
-        me = [n for n, a in self.adapters.items()
-              if a.interface == "me" and isinstance(a, FMUAdapter)]
-        return coupled_groups(me, conns, {n: f.period for n, f in self.system.fmus.items()})
-
-    def _init_keeps(self) -> dict[str, set[int]]:
-        """Jacobi: the inputs that keep their start value in initialization (driven by an FMU
-        output, not a direct feedthrough of their FMU: no previous point to take it from)."""
-        keep: dict[str, set[int]] = {}
-        for node in self.nodes:
-            ad = node.adapter
-            direct = {i for ins in ad.feedthrough().values() for i in ins}
-            for j, name in enumerate(node.inputs.names):
-                src = self.drivers[f"{ad.name}.{name}"]
-                if src in self.out_vars and name not in direct:
-                    keep.setdefault(ad.name, set()).add(j)
-        return keep
-
-    def _start_value(self, node: Node, j: int) -> float:
-        """The start value of input ``j`` of ``node`` (the system's, else the FMU's)."""
-        name = node.inputs.names[j]
-        f = self.system.fmus[node.adapter.name]
-        value = f.start.get(name)
-        if value is None:
-            start = getattr(node.adapter.variables[name], "start", None)
-            try:
-                value = float(start) if start is not None else node.inputs.view[j]
-            except (TypeError, ValueError):  # "true"/"false", an enumeration name
-                value = node.inputs.view[j]
-        return float(value) if not isinstance(value, str) else node.inputs.view[j]
+            return plan(self.system, self.adapters, in_process)
+        except AlgebraicLoopError as exc:  # refused: run.algebraic_loops = "error"
+            raise AlgebraicLoopError(f"{self._where('connections')}: {exc} "
+                                     f"(run.algebraic_loops = \"error\")") from None
+        except ScenarioError as exc:  # a loop that cannot be solved
+            raise ScenarioError(f"{self._where('run.algebraic_loops')}: {exc}") from None
 
     def _node(self, name: str) -> Node:
         node = build_node(name, self.adapters[name], self.system.fmus[name].period,
@@ -456,10 +396,10 @@ class Master(SystemChecks):
         node.gather(self.bus)
         view = node.inputs.view
         for j in self._jacobi_keep.get(name, ()):  # Jacobi: no previous point to take it from
-            view[j] = self._start_value(node, j)
+            view[j] = start_value(node, self.system.fmus[node.adapter.name], j)
         for j, var in enumerate(node.inputs.names):
             if (name, var) in guesses:  # the guess of an algebraic loop: its start value
-                view[j] = self._start_value(node, j)
+                view[j] = start_value(node, self.system.fmus[node.adapter.name], j)
         start = {**f.start, **node.input_values()}  # driven inputs: their driver
         self.busy = (name, "instantiate", self.t0, time.monotonic())
         try:
@@ -489,7 +429,7 @@ class Master(SystemChecks):
         for node in unit.nodes:
             node.gather(self.bus)
             for j in self._jacobi_keep.get(node.adapter.name, ()):
-                node.inputs.view[j] = self._start_value(node, j)
+                node.inputs.view[j] = start_value(node, self.system.fmus[node.adapter.name], j)
             node.adapter.set_inputs(node.inputs, self.t0)
             node.read(self.t0, self.bus, self.native, self.text)
 

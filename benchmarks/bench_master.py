@@ -13,7 +13,21 @@ Measured side by side in one run (ratios; the machines are shared and noisy):
    tolerance. Both include instantiation and initialization; the master's construction
    (archive checks, unzip) is not timed, nor is fmpy's unzip (it is given the folder).
 
-Goals: (2) at most 1.25x (1); (3) under 2 s; (4) at most 2x fmpy.
+5. strongly coupled model exchange: two SpringMass FMUs (FMI 2, ``tests/data/event_fmus``)
+   joined by their spring, 10 s on a 0.01 s grid, CVode at rtol 1e-6, through the master (one
+   CVode over both, :mod:`uwcosim.fmi.coupled`) against two single-solver references: (a) the
+   same pair run by a minimal loop written here (fmpy's CVodeSolver over both FMUs' states,
+   the FMI calls made directly, outputs read at every grid point), (b) ``fmpy.simulate_fmu``
+   on TwoMasses (the same equations in one FMU). The three agree with the closed form
+   ``expm(A t) x0`` (printed). Initialization included, unzipping not (all three get the
+   unzipped folder).
+6. the per-run fixed cost of an in-process run: a plain co-simulation of two test FMUs
+   (BouncingBall -> Feedthrough, 10 steps): ``Master`` built, initialized, run and closed, and
+   the whole ``simulate`` stage (log, simulation.json, summary.json), best of 10 in a warm
+   process.
+
+Goals: (2) at most 1.25x (1); (3) under 2 s; (4) at most 2x fmpy; (5) at most 1.5x the
+single-solver reference; (6) under 20 ms.
 Run: ``.venv/bin/python benchmarks/bench_master.py``.
 """
 
@@ -134,6 +148,187 @@ def bouncing_ball(repeats: int = 5) -> tuple[float, float, int]:
     return min(t_fmpy), min(t_ours), bounces.pop()
 
 
+MASSES = {"a": {"m": 1.0, "c": 1.0, "c_wall": 1.0}, "b": {"m": 2.0, "c": 1.0, "c_wall": 0.5}}
+X0 = {"a": 1.0, "b": 0.0}
+
+
+def masses_exact(t: float) -> np.ndarray:
+    """The two masses in closed form at ``t``: (xa, va, xb, vb)."""
+    from scipy.linalg import expm
+
+    a, b = MASSES["a"], MASSES["b"]
+    A = np.array([[0, 1, 0, 0], [-(a["c"] + a["c_wall"]) / a["m"], 0, a["c"] / a["m"], 0],
+                  [0, 0, 0, 1], [b["c"] / b["m"], 0, -(b["c"] + b["c_wall"]) / b["m"], 0]])
+    return expm(A * t) @ np.array([X0["a"], 0.0, X0["b"], 0.0])
+
+
+def pair_minimal_loop(unzipped: str, rtol: float, h: float, stop: float) -> tuple[float, float]:
+    """The two SpringMass FMUs on one CVode by a minimal loop: seconds and x of mass a at the
+    end. Per evaluation: time and states of both, then a.x -> b.x_other -> b.x -> a.x_other,
+    then the derivatives; per grid point: CVode, time, exchange, completedIntegratorStep."""
+    import ctypes
+
+    from fmpy import read_model_description
+    from fmpy.fmi2 import FMU2Model
+    from fmpy.sundials import CVodeSolver
+
+    md = read_model_description(unzipped)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    a = time.perf_counter()
+    fmus = []
+    for name in ("a", "b"):
+        fmu = FMU2Model(guid=md.guid, unzipDirectory=unzipped,
+                        modelIdentifier=md.modelExchange.modelIdentifier, instanceName=name)
+        fmu.instantiate()
+        fmu.setupExperiment(startTime=0.0)
+        values = {**MASSES[name], "x": X0[name]}
+        fmu.setReal([vr[k] for k in values], list(values.values()))
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        fmu.newDiscreteStates()
+        fmu.enterContinuousTimeMode()
+        fmus.append(fmu)
+    dll, (ca, cb) = fmus[0].dll, (f.component for f in fmus)
+    set_time, set_x = dll.fmi2SetTime, dll.fmi2SetContinuousStates
+    get_x, get_dx = dll.fmi2GetContinuousStates, dll.fmi2GetDerivatives
+    get_nom, get_real, set_real = (dll.fmi2GetNominalsOfContinuousStates, dll.fmi2GetReal,
+                                   dll.fmi2SetReal)
+    completed = dll.fmi2CompletedIntegratorStep
+    vr_x, vr_in = (ctypes.c_uint * 1)(vr["x"]), (ctypes.c_uint * 1)(vr["x_other"])
+    buf, flags = (ctypes.c_double * 1)(), [ctypes.c_int(), ctypes.c_int()]
+
+    def exchange() -> None:
+        get_real(ca, vr_x, 1, buf)
+        set_real(cb, vr_in, 1, buf)
+        get_real(cb, vr_x, 1, buf)
+        set_real(ca, vr_in, 1, buf)
+
+    def cb_time(t: float) -> None:
+        set_time(ca, t)
+        set_time(cb, t)
+
+    def cb_set_x(p, n) -> None:
+        set_x(ca, p, 2)
+        set_x(cb, ctypes.byref(p.contents, 16), 2)
+        exchange()
+
+    def cb_get_x(p, n) -> None:
+        get_x(ca, p, 2)
+        get_x(cb, ctypes.byref(p.contents, 16), 2)
+
+    def cb_get_dx(p, n) -> None:
+        get_dx(ca, p, 2)
+        get_dx(cb, ctypes.byref(p.contents, 16), 2)
+
+    def cb_nominals(p, n) -> None:
+        get_nom(ca, p, 2)
+        get_nom(cb, ctypes.byref(p.contents, 16), 2)
+
+    class NoInput:
+        @staticmethod
+        def apply(t: float) -> None:
+            return None
+
+    exchange()
+    solver = CVodeSolver(nx=4, nz=0, get_x=cb_get_x, set_x=cb_set_x, get_dx=cb_get_dx,
+                         get_z=lambda p, n: None, get_nominals=cb_nominals, set_time=cb_time,
+                         input=NoInput(), startTime=0.0, maxStep=stop / 50,
+                         relativeTolerance=rtol, maxNumSteps=100_000)
+    n = int(round(stop / h))
+    out = np.zeros((n + 1, 2))
+    t = 0.0
+    for k in range(n):
+        t_next = (k + 1) * h
+        solver.step(t, t_next)
+        t = t_next
+        cb_time(t)
+        exchange()
+        for c in (ca, cb):
+            completed(c, 1, ctypes.byref(flags[0]), ctypes.byref(flags[1]))
+        get_real(ca, vr_x, 1, buf)
+        out[k + 1, 0] = buf[0]
+        get_real(cb, vr_x, 1, buf)
+        out[k + 1, 1] = buf[0]
+    elapsed = time.perf_counter() - a
+    for fmu in fmus:
+        fmu.terminate()
+        fmu.freeInstance()
+    return elapsed, float(out[-1, 0])
+
+
+def coupled_pair(repeats: int = 7) -> dict[str, tuple[float, float]]:
+    """Best-of-``repeats`` seconds and the final x of mass a: the master (coupled), the
+    minimal loop, fmpy on TwoMasses."""
+    import fmpy
+    from fmpy import extract
+
+    sys.path.insert(0, str(ROOT / "tests"))
+    from event_fmus import build_event_fmus  # noqa: E402 - the tests' CMake build
+
+    from uwcosim.master import FMU, System
+
+    rtol, h, stop = 1e-6, 0.01, 10.0
+    out: dict[str, list] = {"master": [], "loop": [], "fmpy": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        fmus = build_event_fmus(Path(tmp))
+        pair = extract(str(fmus[("SpringMass", "2.0")]), unzipdir=str(Path(tmp) / "pair"))
+        both = extract(str(fmus[("TwoMasses", "2.0")]), unzipdir=str(Path(tmp) / "both"))
+        system = System(fmus={n: FMU(pair, interface="me",  # unzipped, as for the others
+                                     solver="cvode", rtol=rtol, parameters=MASSES[n],
+                                     start={"x": X0[n]}) for n in ("a", "b")},
+                        connections=[("a.x", "b.x_other"), ("b.x", "a.x_other")],
+                        step=h, duration=stop)
+        a, b = MASSES["a"], MASSES["b"]
+        start = {"m1": a["m"], "m2": b["m"], "c": a["c"], "c1": a["c_wall"],
+                 "c2": b["c_wall"], "x1": X0["a"], "x2": X0["b"]}
+        for _ in range(repeats):  # interleaved: the machine's load hits all three alike
+            m = Master(system)
+            t0 = time.perf_counter()
+            m.initialize()
+            m.run_until(stop)
+            out["master"].append((time.perf_counter() - t0, m.signal("a.x")))
+            m.close()
+            out["loop"].append(pair_minimal_loop(pair, rtol, h, stop))
+            t0 = time.perf_counter()
+            r = fmpy.simulate_fmu(both, fmi_type="ModelExchange", stop_time=stop,
+                                  output_interval=h, relative_tolerance=rtol,
+                                  start_values=start, output=["x1"])
+            out["fmpy"].append((time.perf_counter() - t0, float(r["x1"][-1])))
+    return {k: min(v) for k, v in out.items()}
+
+
+def fixed_cost(repeats: int = 10) -> tuple[float, float]:
+    """Best-of seconds of a plain in-process run (two test FMUs, 10 steps): the master alone
+    (build, initialize, run, close) and the simulate stage (the same as a scenario)."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from event_fmus import build_event_fmus  # noqa: E402 - the tests' CMake build
+
+    from uwcosim import simulate
+    from uwcosim.master import FMU, System
+
+    with tempfile.TemporaryDirectory() as tmp:
+        fmus = build_event_fmus(Path(tmp) / "fmus")
+        ball, ft = fmus[("BouncingBall", "2.0")], fmus[("Feedthrough", "3.0")]
+        sc = Path(tmp) / "plain.toml"
+        sc.write_text(f'connections = [["ball.h", "ft.u"]]\n[run]\nduration = 0.1\n'
+                      f'step = 0.01\n[fmus.ball]\npath = "{ball}"\n[fmus.ft]\n'
+                      f'path = "{ft}"\n[log]\nsignals = ["ball.*", "ft.y"]\n')
+        system = System(fmus={"ball": FMU(ball), "ft": FMU(ft)},
+                        connections=[("ball.h", "ft.u")], step=0.01, duration=0.1)
+        t_master, t_sim = [], []
+        for i in range(repeats + 2):  # the first two warm the process up
+            a = time.perf_counter()
+            m = Master(system)
+            m.initialize()
+            m.run_until(0.1)
+            m.close()
+            t_master.append(time.perf_counter() - a)
+            a = time.perf_counter()
+            simulate(load_scenario(sc), Path(tmp) / f"run{i}")
+            t_sim.append(time.perf_counter() - a)
+    return min(t_master[2:]), min(t_sim[2:])
+
+
 def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         map_file = str(synthetic_bathymetry(7).write_coefficients(Path(tmp) / "map.bin"))
@@ -156,6 +351,20 @@ def main() -> None:
     print(f"BouncingBall ME 10 s, 0.01 s grid, rtol 1e-6 ({n} bounces in both):")
     print(f"  fmpy.simulate_fmu (CVode)  : {1e3 * f:8.1f} ms")
     print(f"  uwcosim master (CVode)     : {1e3 * o:8.1f} ms   ratio {o / f:.2f} (goal <= 2)")
+    res = coupled_pair()
+    x_exact = masses_exact(10.0)[0]
+    tm, tl, tf = (res[k][0] for k in ("master", "loop", "fmpy"))
+    print("two coupled ME masses (SpringMass x2), 10 s, 0.01 s grid, CVode rtol 1e-6:")
+    for label, key in (("uwcosim master, one CVode", "master"),
+                       ("minimal loop, one CVode", "loop"),
+                       ("fmpy.simulate_fmu TwoMasses", "fmpy")):
+        t, x = res[key]
+        print(f"  {label:28s}: {1e3 * t:8.1f} ms   x_a(10) - exact = {x - x_exact:+.1e}")
+    print(f"  ratio master / minimal loop {tm / tl:.2f}, master / fmpy (one FMU) {tm / tf:.2f} "
+          f"(goal <= 1.5)")
+    t_master, t_sim = fixed_cost()
+    print(f"per-run fixed cost, plain CS run of two FMUs in process: master {1e3 * t_master:.1f} "
+          f"ms, simulate stage {1e3 * t_sim:.1f} ms (goal < 20 ms)")
 
 
 if __name__ == "__main__":

@@ -3,9 +3,12 @@
 Small FMUs written for uwcosim in C (see ``tests/data/event_fmus/README.md`` for their
 equations and events): BouncingBall (state events), Stair (time events, Integer output,
 termination), TypedBlock (every FMI variable type, a discrete input), Feedthrough (direct
-feed-through). Each as ``<Model>_fmi2.fmu`` and ``<Model>_fmi3.fmu``, both with Co-Simulation and
-Model Exchange, built once per session with CMake against fmpy's FMI headers into a temporary
-folder (never committed). A missing cmake skips the tests that use them.
+feed-through), and for the coupling algorithms Polynomial (feed-through with directional
+derivatives), PController and Lag (a controller around a plant with feed-through), SpringMass
+(two of them: two masses with a spring) and TwoMasses (both masses in one FMU). Each as
+``<Model>_fmi2.fmu`` and ``<Model>_fmi3.fmu``, both with Co-Simulation and Model Exchange, built
+once per session with CMake against fmpy's FMI headers into a temporary folder (never
+committed). A missing cmake skips the tests that use them.
 
 Use the session fixture ``event_fmus`` (``{(model, "2.0" | "3.0"): Path}``) or, once it has run,
 ``event_fmu(model, version)``. Closed forms to compare with: ``ball_exact`` (BouncingBall) and

@@ -33,6 +33,19 @@ def test_algebraic_loop_is_reported_with_its_variables():
     assert "a.y" in str(info.value) and "b.u" in str(info.value)
 
 
+def test_algebraic_loop_message_arrows_run_along_the_data_flow():
+    """Each arrow of the message is a connection (output -> input) or a feedthrough inside an
+    FMU (input -> output): the loop read in the direction the values flow (issue 21, item 8)."""
+    deps = {"a": {"y": {"u"}}, "b": {"y": {"u"}}, "c": {"y": {"u"}}}
+    conns = [("a.y", "b.u"), ("b.y", "c.u"), ("c.y", "a.u")]
+    with pytest.raises(AlgebraicLoopError) as info:
+        stepping_order(["a", "b", "c"], conns, deps)
+    loop = str(info.value).split(": ", 1)[1].split(" -> ")
+    flow = set(conns) | {(f"{f}.u", f"{f}.y") for f in deps}
+    assert loop[0] == loop[-1] and len(loop) == 7
+    assert all(edge in flow for edge in zip(loop, loop[1:])), loop
+
+
 def test_log_chunks_are_readable_before_close(tmp_path):
     path = tmp_path / "log.parquet"
     log = RunLogger(path, ["a"], ["ok"], {"seed": 1}, chunk=3)

@@ -203,6 +203,26 @@ def test_stair_termination_as_error(event_fmus, tmp_path, capsys, interface):
     assert read_log(out / "log.parquet")[0]["time"][-1] <= 2.0 + 1e-12
 
 
+@pytest.mark.parametrize("interface", ["cs", "me"])
+@pytest.mark.parametrize("t_end", [2.0, 2.05], ids=["on-grid", "mid-step"])
+def test_termination_as_error_keeps_the_last_row_as_stop_does(event_fmus, tmp_path, interface,
+                                                              t_end):
+    """``stop_on_terminate = "error"`` only changes the status and the exit code: the log has
+    the same rows as with ``"stop"``, the termination time's row included (issue 21, item 8)."""
+    path = event_fmus[("Stair", "2.0")]
+    logs = {}
+    for how in ("stop", "error"):
+        sc = scenario(tmp_path, {"stair": {"path": path, "interface": interface,
+                                           "parameters": {"t_terminate": t_end}}}, 10.0, 0.1,
+                      run_extra={"stop_on_terminate": how}, name=f"{how}.toml")
+        out = tmp_path / how
+        assert main(["run", str(sc), "--out", str(out)]) == (0 if how == "stop" else 3)
+        logs[how] = read_log(out / "log.parquet")[0]
+    assert logs["stop"]["time"][-1] == pytest.approx(t_end, abs=1e-12)
+    for name in ("time", "stair.counter"):
+        np.testing.assert_array_equal(logs["error"][name], logs["stop"][name])
+
+
 # -- Feedthrough: connections across types and across CS/ME -----------------------------------
 CONTROLS = {"u": {"target": "ft.u", "table": [[0, 0.0], [1, 1.0], [2, -1.0]]},
             "iu": {"target": "ft.iu", "table": [[0, 0], [0.5, 3], [1.5, -2]],

@@ -161,6 +161,10 @@ class RunGuard:
     def uninstall(self) -> None:
         self._quit.set()
         if self._thread is not None:
+            try:  # wake the watcher's select at once (0 is no signal number)
+                os.write(self._wfd, b"\0")
+            except OSError:
+                pass  # the pipe is full: the watcher is awake anyway
             self._thread.join()
         signal.set_wakeup_fd(self._saved_fd)
         for s, old in self._saved.items():

@@ -45,7 +45,7 @@ from uwcosim.fmi.features import interfaces as fmu_interfaces
 from uwcosim.fmi.features import missing_features
 from uwcosim.fmi.instance import Instance, status_label
 from uwcosim.fmi.solvers import ModelExchange
-from uwcosim.fmi.structure import feedthrough
+from uwcosim.fmi.structure import feedthrough, provides_directional_derivatives
 from uwcosim.fmi.varmap import VariableMap, resolve_map
 from uwcosim.fmi.vartypes import (
     FLOAT64,
@@ -116,7 +116,11 @@ class FMUAdapter:
         self._closed_solver: str | None = None  # the ME integrator used, kept by close()
         self._pending: list[Binding] = []  # typed bindings made before the library is loaded
         self._typed: list[Binding] = []  # every typed binding (discrete inputs: last values)
+        self._held: tuple[float, float] | None = None  # (t0, t_stop) while held in init mode
         self.time_s = 0.0  # wall time spent in this FMU's calls (set by the master)
+        #: the FMU gives the partial derivatives of its outputs (:meth:`output_derivatives`)
+        self.provides_derivatives = provides_directional_derivatives(self.md, self.path,
+                                                                     interface)
 
     # -- variables --------------------------------------------------------------------------
     def variable(self, name: str) -> ModelVariable:
@@ -213,11 +217,14 @@ class FMUAdapter:
             unzip(self.path, self._own_unzip)
         return self._own_unzip
 
-    def instantiate(self, parameters: dict, start: dict, t0: float, t_stop: float) -> None:
+    def instantiate(self, parameters: dict, start: dict, t0: float, t_stop: float,
+                    hold: bool = False) -> None:
         """Instantiate, set parameters and start values, and initialize at ``t0``.
 
         An adapter that already holds an instance resets it (``fmi2Reset``/``fmi3Reset``) and
         initializes it again instead: campaigns reuse one instance per worker for many runs.
+        ``hold``: stay in initialization mode (inputs may be set and outputs read, e.g. to
+        solve an algebraic loop) until :meth:`exit_initialization`.
         """
         from fmpy import fmi2, fmi3  # lazy: fmpy (0.1 s) only once an FMU is instantiated
 
@@ -227,7 +234,7 @@ class FMUAdapter:
         if inst is not None:
             self.messages.clear()
             inst.guard("reset", inst.fmu.reset, t0)
-            inst.guard("setup", lambda: self._initialize(values, t0, t_stop), t0)
+            inst.guard("setup", lambda: self._initialize(values, t0, t_stop, hold), t0)
             return
         unzip_dir = self._unzip()
         guid = self.md.instantiationToken if self.fmi3 else self.md.guid
@@ -262,7 +269,14 @@ class FMUAdapter:
         for b in self._pending:
             inst.resolve(b)
         self._pending = []
-        inst.guard("setup", lambda: self._initialize(values, t0, t_stop), t0)
+        inst.guard("setup", lambda: self._initialize(values, t0, t_stop, hold), t0)
+
+    def exit_initialization(self) -> None:
+        """Leave the initialization mode :meth:`instantiate` held the FMU in."""
+        if self._held is None:
+            return
+        (t0, t_stop), self._held = self._held, None
+        self._inst.guard("setup", lambda: self._exit_initialization(t0, t_stop), t0)
 
     @property
     def instance(self) -> Instance | None:
@@ -270,8 +284,9 @@ class FMUAdapter:
         one instance serves every run of a reused adapter."""
         return self._inst
 
-    def _initialize(self, values: dict, t0: float, t_stop: float) -> None:
+    def _initialize(self, values: dict, t0: float, t_stop: float, hold: bool = False) -> None:
         fmu = self._inst.fmu
+        self._me = None  # a reused instance: the integrator of the last run is gone
         if not self.fmi3:
             fmu.setupExperiment(startTime=t0)
         structural = {n: v for n, v in values.items() if self._structural(n)}
@@ -285,7 +300,13 @@ class FMUAdapter:
             fmu.enterInitializationMode(startTime=t0)
         else:
             fmu.enterInitializationMode()
-        fmu.exitInitializationMode()
+        if hold:
+            self._held = (t0, t_stop)
+            return
+        self._exit_initialization(t0, t_stop)
+
+    def _exit_initialization(self, t0: float, t_stop: float) -> None:
+        self._inst.fmu.exitInitializationMode()
         if self.interface == "me":
             for b in self._typed:  # a new run: every discrete input is set again
                 for g in b.groups:
@@ -375,6 +396,41 @@ class FMUAdapter:
         else:
             st = self._set(self._c, b.vr, b.n, b.buf)
         self._check(st, "set inputs", t)
+
+    def set_inputs_now(self, b: Binding, t: float) -> bool:
+        """Set the inputs of ``b`` in initialization mode, or (model exchange) in event mode:
+        the discrete ones too (those that changed, in event mode), without an event of their
+        own (a joint event loop or an initialization iteration is in progress). True if a
+        discrete input changed (event mode)."""
+        if not b.n:
+            return False
+        if not b.groups:
+            self.set_continuous(b, t)
+        elif self._me is None:
+            self._set_groups(b, b.groups, t)
+        else:
+            self._set_groups(b, b.continuous_groups, t)
+            changed = self._me.discrete_changes(b)
+            self._me.apply_discrete(changed, t)
+            return bool(changed)
+        return False
+
+    def output_derivatives(self, outputs: Binding, inputs: Binding, t: float) -> np.ndarray:
+        """``d outputs / d inputs`` (in our units) from the FMU's directional derivatives
+        (:attr:`provides_derivatives`), one directional derivative per input."""
+        fmu = self._inst.fmu
+        unknowns = [self.variable(n).valueReference for n in outputs.names]
+        knowns = [self.variable(n).valueReference for n in inputs.names]
+        jac = np.empty((len(unknowns), len(knowns)))
+        for j in range(len(knowns)):
+            seed = [0.0] * len(knowns)
+            seed[j] = 1.0
+            jac[:, j] = self._inst.guard(
+                "getDirectionalDerivative",
+                lambda seed=seed: fmu.getDirectionalDerivative(unknowns, knowns, seed), t)
+        s_out = np.array([self.varmap.affine(n)[0] for n in outputs.names])
+        s_in = np.array([self.varmap.affine(n)[0] for n in inputs.names])
+        return jac * s_out[:, None] / s_in[None, :]
 
     def set_inputs(self, b: Binding, t: float) -> None:
         """Set the inputs at a communication point. Model exchange: discrete inputs that changed
@@ -474,6 +530,18 @@ class FMUAdapter:
         if self._me is not None:
             return self._me.solver_name
         return self.solver if self._inst is not None else self._closed_solver
+
+    @property
+    def model_exchange(self) -> ModelExchange | None:
+        """The model-exchange integrator of the instance (None for co-simulation, before
+        :meth:`instantiate` and while held in initialization mode): a joint integrator of
+        several FMUs (:mod:`uwcosim.fmi.coupled`) drives it instead of :meth:`do_step`."""
+        return self._me
+
+    def sync_terminated(self) -> None:
+        """Take the integrator's request to stop after a joint integration step."""
+        if self._me is not None and self._me.terminated is not None:
+            self.terminated = self._me.terminated
 
     @property
     def event_times(self) -> list[float]:

@@ -68,6 +68,10 @@ class ProxyAdapter:
         self.interface, self.nx = interface, self.local.nx
         self.messages = self.local.messages
         self.timeout_s = float(timeout_s)
+        #: what an in-process adapter offers an algebraic-loop solver or a joint integrator:
+        #: not across the pipe (an FMU in a worker is stepped on its own)
+        self.provides_derivatives = False
+        self.model_exchange = None
         self.time_s = 0.0
         self._args = (name, str(self.local.path), interface, solver, substeps, rtol, None,
                       None if unzip_dir is None else str(unzip_dir))

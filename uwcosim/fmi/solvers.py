@@ -67,7 +67,7 @@ def dop853(deriv: Callable, x0: np.ndarray, t: float, h: float, rtol: float,
     return sol.y[:, -1]
 
 
-class _NoInput:
+class NoInput:
     """fmpy's CVodeSolver applies ``input.apply(t)`` in its root function: inputs are ours."""
 
     @staticmethod
@@ -76,9 +76,11 @@ class _NoInput:
 
 
 @functools.cache
-def _cvode_class():
+def cvode_class():
+    """fmpy's CVodeSolver with callbacks that report an FMU error (loaded on first use)."""
     # lazy: fmpy.sundials loads the SUNDIALS libraries, needed only on the event-aware path
-    from fmpy.sundials import CVodeSolver
+    from fmpy.sundials import CVodeSolver, sundials_types
+    from fmpy.sundials import cvode as cv
     from fmpy.sundials.libraries import sundials_core
     from fmpy.sundials.sundials_context import SUNContext_PushErrHandler
     from fmpy.sundials.sundials_types import SUNContext
@@ -90,6 +92,9 @@ def _cvode_class():
 
         def __init__(self, **kwargs) -> None:
             super().__init__(**kwargs)
+            self._tret = sundials_types.sunrealtype(0.0)
+            self._tret_ref = ctypes.byref(self._tret)
+            self._no_roots = np.zeros(self.nz, dtype=np.int32)
             # only fmpy's handler (it keeps the message for the exception): SUNDIALS' default
             # one would also print it to stderr, and the CLI's errors are one line
             clear = sundials_core.SUNContext_ClearErrHandlers
@@ -110,6 +115,22 @@ def _cvode_class():
             except Exception as exc:  # noqa: BLE001
                 self.error = exc
                 return -1
+
+        def step(self, t, tNext):
+            """fmpy's step (the same calls) without its per-call allocations."""
+            if not self.discrete:
+                self.get_x(self.px, self.nx)
+            flag = cv.CVode(self.cvode_mem, tNext, self.x, self._tret_ref, cv.CV_NORMAL)
+            if not self.discrete:
+                self.set_x(self.px, self.nx)
+            if flag == cv.CV_ROOT_RETURN:
+                roots = np.zeros(self.nz, dtype=np.int32)
+                if cv.CVodeGetRootInfo(self.cvode_mem, np.ctypeslib.as_ctypes(roots)) != 0:
+                    raise RuntimeError("CVodeGetRootInfo failed")
+                return True, roots, self._tret.value
+            if flag < 0:
+                raise RuntimeError(f"CVode error (flag {flag}): {self.error_info}")
+            return flag > 0, self._no_roots, self._tret.value
 
     return CVode
 
@@ -177,6 +198,87 @@ class ModelExchange:
         raise FMUError(f"FMU '{self.inst.name}' ({self.inst.path.name}): event iteration did not "
                        f"converge at t={t:g} ({MAX_EVENT_ITERATIONS} iterations)")
 
+    # -- the pieces a joint integrator uses (:mod:`uwcosim.fmi.coupled`) -----------------------
+    def enter_event_mode(self, t: float) -> None:
+        """enterEventMode at ``t`` (the event time is logged)."""
+        self.inst.check(self._enter_event(self._c), "enterEventMode", t)
+        if len(self.event_times) < MAX_LOGGED_EVENTS:
+            self.event_times.append(t)
+
+    def update_pass(self, t: float) -> bool:
+        """One pass of the discrete update in event mode: True if the FMU needs another one
+        (a request to stop sets :attr:`terminated`; a converged pass, :attr:`next_event`)."""
+        fmu = self.inst.fmu
+        update = fmu.updateDiscreteStates if self.inst.fmi3 else fmu.newDiscreteStates
+        need, terminate, _, _, defined, t_next = self.inst.guard("event update", update, t)
+        if terminate:
+            self.terminated = (t, self.inst.reason("terminateSimulation (event update)"))
+            return False
+        if not need:
+            self.next_event = float(t_next) if defined else None
+        return bool(need)
+
+    def enter_continuous_mode(self, t: float) -> None:
+        self.inst.guard("enterContinuousTimeMode", self.inst.fmu.enterContinuousTimeMode, t)
+        if self.next_event is not None:
+            self.solver_name = "cvode"
+
+    def set_time(self, t: float) -> None:
+        """setTime (no input refresh: the joint integrator sets the inputs itself)."""
+        self._t = t
+        st = self._set_time(self._c, t)
+        if st > 1:
+            self.inst.check(st, "setTime", t)
+
+    def set_states(self, x: np.ndarray) -> None:
+        if self.nx:
+            self.xv[:] = x
+            self.inst.check(self._set_states(self._c, self._x, self.nx),
+                            "setContinuousStates", self._t)
+
+    def derivatives(self) -> np.ndarray:
+        if self.nx:
+            self.inst.check(self._get_der(self._c, self._dx, self.nx), "getDerivatives",
+                            self._t)
+        return self.dxv.copy()
+
+    def completed_step(self, t: float) -> tuple[bool, bool]:
+        """completedIntegratorStep: ``(enter event mode, terminate)``; a request to stop sets
+        :attr:`terminated`."""
+        st = self._completed(self._c, self._true, *self._cflag_refs)
+        if st > 1:
+            self.inst.check(st, "completedIntegratorStep", t)
+        if self._cflags[1].value:
+            self.terminated = (t, self.inst.reason(
+                "terminateSimulation (completedIntegratorStep)"))
+            return False, True
+        return bool(self._cflags[0].value), False
+
+    def discrete_changes(self, b: Binding) -> list:
+        """The discrete input groups of ``b`` whose values changed since last set."""
+        if not b.groups:
+            return []
+        b.to_fmu()
+        changed = []
+        for g in b.discrete_groups:
+            b.raw_to_group(g)
+            cur = g.arr.copy() if g.arr is not None else [g.buf[j] for j in range(g.n)]
+            same = g.last is not None and (np.array_equal(cur, g.last) if g.arr is not None
+                                           else cur == g.last)
+            if not same:
+                changed.append((g, cur))
+        return changed
+
+    def apply_discrete(self, changed: list, t: float) -> None:
+        """Set the changed discrete groups (:meth:`discrete_changes`) in event mode."""
+        for g, cur in changed:
+            if self.inst.fmi3:
+                st = g.set(self._c, g.vr, g.nvr, g.buf, g.n)
+            else:
+                st = g.set(self._c, g.vr, g.nvr, g.buf)
+            self.inst.check(st, "set discrete inputs", t)
+            g.last = cur
+
     def initial_event(self, t0: float) -> None:
         """After exitInitializationMode (event mode): iterate, then continuous-time mode."""
         self._iterate(t0)
@@ -201,28 +303,10 @@ class ModelExchange:
 
     def set_discrete(self, b: Binding, t: float) -> None:
         """Set the discrete inputs of ``b`` that changed, in event mode (one event)."""
-        b.to_fmu()
-        changed = []
-        for g in b.discrete_groups:
-            b.raw_to_group(g)
-            cur = g.arr.copy() if g.arr is not None else [g.buf[j] for j in range(g.n)]
-            same = g.last is not None and (np.array_equal(cur, g.last) if g.arr is not None
-                                           else cur == g.last)
-            if not same:
-                changed.append((g, cur))
+        changed = self.discrete_changes(b)
         if not changed or self.terminated is not None:
             return
-
-        def apply() -> None:
-            for g, cur in changed:
-                if self.inst.fmi3:
-                    st = g.set(self._c, g.vr, g.nvr, g.buf, g.n)
-                else:
-                    st = g.set(self._c, g.vr, g.nvr, g.buf)
-                self.inst.check(st, "set discrete inputs", t)
-                g.last = cur
-
-        self._event(t, apply)
+        self._event(t, lambda: self.apply_discrete(changed, t))
 
     # -- stepping -----------------------------------------------------------------------------
     def states(self) -> np.ndarray:
@@ -293,35 +377,37 @@ class ModelExchange:
             self._input_fn(t, self._inputs.view)
             self._set_continuous(self._inputs, t)
 
-    def _cb_get_x(self, p, n) -> None:
+    def get_states_into(self, p: object, n: int) -> None:
+        """getContinuousStates into the C array ``p`` (CVode's callbacks: pointer, size)."""
         st = self._get_states(self._c, p, n)
         if st > 1:
             self.inst.check(st, "getContinuousStates", self._t)
 
-    def _cb_set_x(self, p, n) -> None:
+    def set_states_from(self, p: object, n: int) -> None:
         st = self._set_states(self._c, p, n)
         if st > 1:
             self.inst.check(st, "setContinuousStates", self._t)
 
-    def _cb_get_dx(self, p, n) -> None:
+    def get_derivatives_into(self, p: object, n: int) -> None:
         st = self._get_der(self._c, p, n)
         if st > 1:
             self.inst.check(st, "getDerivatives", self._t)
 
-    def _cb_get_z(self, p, n) -> None:
+    def get_indicators_into(self, p: object, n: int) -> None:
         st = self._get_z(self._c, p, n)
         if st > 1:
             self.inst.check(st, "getEventIndicators", self._t)
 
-    def _cb_get_nominals(self, p, n) -> None:
+    def get_nominals_into(self, p: object, n: int) -> None:
         self.inst.check(self._get_nominals(self._c, p, n), "getNominalsOfContinuousStates",
                         self._t)
 
     def _make_cvode(self, t: float):
-        return _cvode_class()(
-            nx=self.nx, nz=self.nz, get_x=self._cb_get_x, set_x=self._cb_set_x,
-            get_dx=self._cb_get_dx, get_z=self._cb_get_z, get_nominals=self._cb_get_nominals,
-            set_time=self._cb_set_time, input=_NoInput(), startTime=t, maxStep=self.max_step,
+        return cvode_class()(
+            nx=self.nx, nz=self.nz, get_x=self.get_states_into, set_x=self.set_states_from,
+            get_dx=self.get_derivatives_into, get_z=self.get_indicators_into,
+            get_nominals=self.get_nominals_into,
+            set_time=self._cb_set_time, input=NoInput(), startTime=t, maxStep=self.max_step,
             relativeTolerance=self.rtol, maxNumSteps=MAX_CVODE_STEPS)
 
     def _integrate(self, time: float, t_next: float) -> tuple[bool, float]:

@@ -1,7 +1,9 @@
 """The system layer: the co-simulation master, its input and what observes it.
 
 The system's types (:mod:`uwcosim.master.system`: ``System``, ``FMU``, ``Control``, ``Noise``,
-``Sensor``, the loss models), the connection graph (``graph``), one FMU on the bus (``node``),
+``Sensor``, the loss models), the connection graph (``graph``: order, algebraic loops), the
+algorithms by name and the units of FMUs stepped together (``algorithms``), the values
+exchanged inside a unit and the loops' Newton solver (``loops``), one FMU on the bus (``node``),
 the sources (``sources``), the sensors and measurements (``measurement``), the wiring checks
 and the bus layout (``checks``: arrays, integer ranges, observed locals), the stepping loop
 (``master``) and the observer protocol (``observer``). It imports only :mod:`uwcosim.core`

@@ -4,7 +4,11 @@ The master's input is a :class:`~uwcosim.master.system.System` (FMUs, connection
 sensors, time grid); the scenario layer converts a scenario into one
 (:func:`uwcosim.scenario.system.to_system`): the master knows no scenario. Time is an integer count
 of base steps: ``t = t0 + k*h``, never accumulated. Each FMU runs at an integer multiple ``period``
-of ``h``; FMUs are stepped Gauss-Seidel in dependency order. Signals live in one flat float64
+of ``h``; FMUs are stepped by the algorithm the system names (:mod:`uwcosim.master.algorithms`:
+Gauss-Seidel in dependency order, or Jacobi), in units: one FMU, or the FMUs of an algebraic
+loop (solved by :mod:`uwcosim.master.loops`), or model-exchange FMUs integrated together
+(:mod:`uwcosim.fmi.coupled`); with Gauss-Seidel and one FMU per unit, the plain loop of
+:meth:`Master.step`. Signals live in one flat float64
 array, the *bus*: every FMU output (an FMI 3 array: one slot per element) and every source has a
 slot, and each FMU input value reads a slot (the layout and wiring: :mod:`uwcosim.master.checks`).
 Integer and Boolean values are on the bus as float64 (exact up to 2**53); 64-bit integers also
@@ -51,13 +55,13 @@ from pathlib import Path
 import numpy as np
 
 from uwcosim.core import scratch
-from uwcosim.core.errors import FMUError, ScenarioError, UwcosimError
+from uwcosim.core.errors import AlgebraicLoopError, FMUError, ScenarioError, UwcosimError
 from uwcosim.fmi import vartypes
 from uwcosim.fmi.adapter import FMUAdapter
 from uwcosim.fmi.proxy import ProxyAdapter
 from uwcosim.fmi.varmap import ROLES, load_entries
+from uwcosim.master.algorithms import Unit, build_unit, jacobi_keeps, plan, start_value
 from uwcosim.master.checks import SystemChecks
-from uwcosim.master.graph import stepping_order
 from uwcosim.master.measurement import Measurement, SensorBank
 from uwcosim.master.node import Node, build_node
 from uwcosim.master.observer import Observer, StepView
@@ -193,11 +197,8 @@ class Master(SystemChecks):
                     self._numeric_slot(o, f"sensors.{sname}.outputs")
         self.drivers = drivers
         if not self.problems:
-            deps = {n: a.feedthrough() for n, a in self.adapters.items()}
             with self._collect():
-                order = stepping_order(list(self.adapters),
-                                       [(self.variable_of(c[0]), self.variable_of(c[1]))
-                                        for c in system.connections], deps)
+                groups = self._plan()
         if self.check_only:
             return
         if self.problems:
@@ -212,8 +213,40 @@ class Master(SystemChecks):
         self.xbus = np.zeros(len(self.exact), dtype=np.int64)
         #: text of the String signals, by bus slot
         self.text: dict[int, str] = {}
-        self.nodes: list[Node] = [self._node(name) for name in order]
+        nodes = {name: self._node(name) for name in self.adapters}
+        units, loops, coupled = groups
+        #: the units in stepping order (:mod:`uwcosim.master.algorithms`): one FMU each, or the
+        #: FMUs of an algebraic loop, or model-exchange FMUs integrated together
+        self.units: list[Unit] = []
+        for names in units:
+            with self._collect():
+                self.units.append(build_unit(names, nodes, loops, coupled,
+                                             system.loop_tolerance, system.loop_max_iterations))
+        if self.problems:
+            raise self.problems[0]
+        self.nodes: list[Node] = [n for u in self.units for n in u.nodes]
+        #: the algebraic loops solved (:class:`~uwcosim.master.graph.Loop`)
+        self.loops = loops
+        self._jacobi_keep = jacobi_keeps(self.nodes, self.drivers, self.out_vars) \
+            if system.algorithm == "jacobi" else {}
+        #: one FMU per unit, Gauss-Seidel: the plain stepping loop
+        self._plain = system.algorithm == "gauss-seidel" and all(
+            len(u.nodes) == 1 and not u.coupled and u.exchange is None for u in self.units)
         self._sample_sources()
+
+    def _plan(self) -> tuple[list[list[str]], list, list[list[str]]]:
+        """The units in stepping order, the algebraic loops, the coupled ME systems
+        (:func:`uwcosim.master.algorithms.plan`), errors naming the key."""
+        in_process = {n for n, a in self.adapters.items() if isinstance(a, FMUAdapter)}
+        try:
+            conns = [(self.variable_of(c[0]), self.variable_of(c[1]))
+                     for c in self.system.connections]
+            return plan(self.system, self.adapters, in_process, conns)
+        except AlgebraicLoopError as exc:  # refused: run.algebraic_loops = "error"
+            raise AlgebraicLoopError(f"{self._where('connections')}: {exc} "
+                                     f"(run.algebraic_loops = \"error\")") from None
+        except ScenarioError as exc:  # a loop that cannot be solved
+            raise ScenarioError(f"{self._where('run.algebraic_loops')}: {exc}") from None
 
     def _node(self, name: str) -> Node:
         outs = [k.split(".", 1)[1] for k in self.out_vars if k.split(".", 1)[0] == name]
@@ -373,44 +406,96 @@ class Master(SystemChecks):
 
         FMUs are initialized in stepping order; each one's inputs (sources at ``t0`` and the
         outputs of the FMUs before it) are set in initialization mode, with its start values,
-        so that its outputs at ``t0`` already see them (as ``fmpy.simulate_fmu`` does)."""
+        so that its outputs at ``t0`` already see them (as ``fmpy.simulate_fmu`` does). The FMUs
+        of an algebraic loop are held in initialization mode together while the loop is solved
+        (from the loop inputs' start values); model-exchange FMUs integrated together get
+        their joint integrator."""
         t_stop = self.t0 + self.n_steps * self.h
         self.k = 0
         self.terminated = None
         self._load_sources(0)
-        for node in self.nodes:
-            name = node.adapter.name
-            f = self.system.fmus[name]
-            params = dict(f.parameters)
-            params.update((start_overrides or {}).get(name, {}))
-            node.set_text(self.text)
-            node.gather(self.bus, self.xbus, self.t0)
-            start = {**f.start, **node.input_values()}  # driven inputs: their driver
-            self.busy = (name, "instantiate", self.t0, time.monotonic())
-            try:
-                node.adapter.instantiate(params, start, self.t0, t_stop)
-            except FMUError as exc:
-                raise FMUError(f"{exc} [{self._where(f'fmus.{name}')}]") from None
-            finally:
-                self.busy = None
-            node.adapter.set_inputs(node.inputs, self.t0)
-            node.read(self.t0, self.bus, self.xbus, self.text)
+        overrides = start_overrides or {}
+        for unit in self.units:
+            ex = unit.init_exchange
+            guesses = ex.unknowns() if ex is not None else set()
+            for node in unit.nodes:
+                self._instantiate(node, overrides, t_stop, guesses, hold=ex is not None)
+            if ex is not None:
+                self._solve_init(unit, ex)
+            for system in unit.coupled:
+                system.start(self.t0, t_stop)
         self._initialized = True
         for node in self.nodes:  # a request to stop in the initial event iteration
             if node.adapter.terminated is not None:
                 self._stop(node.adapter)
                 break
         self.notify()
+        self._stop_as_error()
+
+    def _instantiate(self, node: Node, overrides: dict, t_stop: float,
+                     guesses: set[tuple[str, str]], hold: bool) -> None:
+        """Instantiate and initialize one FMU (``hold``: leave it in initialization mode)."""
+        name = node.adapter.name
+        f = self.system.fmus[name]
+        params = dict(f.parameters)
+        params.update(overrides.get(name, {}))
+        node.set_text(self.text)
+        node.gather(self.bus, self.xbus, self.t0)
+        view = node.inputs.view
+        for j in self._jacobi_keep.get(name, ()):  # Jacobi: no previous point to take it from
+            view[j] = start_value(node, self.system.fmus[node.adapter.name], j)
+        for j, var in zip(node.inputs.offsets, node.inputs.names):
+            if (name, var) in guesses:  # the guess of an algebraic loop: its start value
+                view[j] = start_value(node, self.system.fmus[node.adapter.name], j)
+        start = {**f.start, **node.input_values()}  # driven inputs: their driver
+        self.busy = (name, "instantiate", self.t0, time.monotonic())
+        try:
+            node.adapter.instantiate(params, start, self.t0, t_stop, hold=hold) if hold else \
+                node.adapter.instantiate(params, start, self.t0, t_stop)
+        except FMUError as exc:
+            raise FMUError(f"{exc} [{self._where(f'fmus.{name}')}]") from None
+        finally:
+            self.busy = None
+        if hold:
+            return
+        node.adapter.set_inputs(node.inputs, self.t0)
+        node.read(self.t0, self.bus, self.xbus, self.text)
+
+    def _solve_init(self, unit: Unit, ex) -> None:
+        """The algebraic loops of ``unit`` in initialization mode, then its FMUs leave it."""
+        self.busy = (unit.nodes[0].adapter.name, "initialization (algebraic loop)", self.t0,
+                     time.monotonic())
+        try:
+            ex.run(self.t0, "init")
+            for node in unit.nodes:
+                node.read(self.t0, self.bus, self.xbus, self.text)
+            for node in unit.nodes:
+                node.adapter.exit_initialization()
+        finally:
+            self.busy = None
+        for node in unit.nodes:
+            node.gather(self.bus, self.xbus, self.t0)
+            for j in self._jacobi_keep.get(node.adapter.name, ()):
+                node.inputs.view[j] = start_value(node, self.system.fmus[node.adapter.name], j)
+            node.adapter.set_inputs(node.inputs, self.t0)
+            node.read(self.t0, self.bus, self.xbus, self.text)
 
     def _stop(self, ad) -> None:
-        """Record ``ad``'s request to stop; an error with ``stop_on_terminate = "error"``."""
+        """Record ``ad``'s request to stop (:meth:`_stop_as_error` raises once the step, or the
+        initialization, is complete and observed)."""
         t, reason = ad.terminated
         self.terminated = Termination(ad.name, float(t), str(reason))
-        if self.system.stop_on_terminate == "error":
+
+    def _stop_as_error(self) -> None:
+        """With ``stop_on_terminate = "error"``, a request to stop is an :class:`FMUError`:
+        raised after the observers saw the step (the log keeps the same rows as with
+        ``"stop"``; a stop between two grid times: :meth:`stopped_between_steps`)."""
+        if self.terminated is not None and self.system.stop_on_terminate == "error":
             raise FMUError(f"{self.terminated.message()} (run.stop_on_terminate = \"error\")")
 
     def _load_sources(self, k: int) -> None:
-        self.bus[self.source_slots] = self.sources.row(k)
+        if self.source_slots.size:
+            self.bus[self.source_slots] = self.sources.row(k)
         self.sensors.load_inputs(k, self.bus)
         for slot, ctl in self.dynamic:
             x, y = self.bus[ctl.pos_slots]
@@ -433,6 +518,16 @@ class Master(SystemChecks):
         self._load_sources(k)
         t_k = self.t0 + k * self.h
         t_next = self.t0 + (k + 1) * self.h
+        if not self._plain:
+            fmu_time = self._step_units(k, t_next)
+            self.master_time_s += time.perf_counter() - c0 - fmu_time
+            if self._stopped_inside:
+                self._stop_as_error()
+                return
+            self.k = k + 1
+            self.notify()
+            self._stop_as_error()
+            return
         fmu_time = 0.0
         for node in self.nodes:
             p = node.period
@@ -464,10 +559,116 @@ class Master(SystemChecks):
                 if stop[0] < t_next - 1e-9 * self.h:  # stopped inside the step: not on the grid
                     self._stopped_inside = True
                     self.master_time_s += time.perf_counter() - c0 - fmu_time
+                    self._stop_as_error()
                     return
         self.k = k + 1
         self.master_time_s += time.perf_counter() - c0 - fmu_time
         self.notify()
+        self._stop_as_error()
+
+    # -- units: loops, coupled model exchange, Jacobi (:mod:`uwcosim.master.algorithms`) ------
+    def _step_units(self, k: int, t_next: float) -> float:
+        """One step of the units: Gauss-Seidel (each unit gathers its inputs when its turn
+        comes) or Jacobi (all gather first, from ``t_k``); the FMUs' time spent."""
+        ticking = [u for u in self.units if not (k + 1) % u.period]
+        t_k = self.t0 + k * self.h
+        reached: dict[int, tuple[float, bool]] = {}
+        clock = time.perf_counter
+        if self.system.algorithm != "jacobi":
+            a = clock()
+            for unit in ticking:
+                self._gather(unit, t_k)
+                self._advance(unit, k, t_next, reached)
+                self._finish(unit, t_next, reached)
+                if self._stopped_inside:
+                    break
+            return self._share(ticking, clock() - a)
+        a = clock()
+        for unit in ticking:
+            self._gather(unit, t_k)
+        for unit in ticking:
+            self._advance(unit, k, t_next, reached)
+        for unit in ticking:  # a stop inside the step: that FMU's outputs, the others' at t_k
+            for node in unit.nodes:
+                stop = node.adapter.terminated
+                if stop is not None and stop[0] < t_next - 1e-9 * self.h:
+                    node.read(stop[0], self.bus, self.xbus, self.text)
+                    self._stop(node.adapter)
+                    self._stopped_inside = True
+                    return self._share(ticking, clock() - a)
+        for unit in ticking:
+            self._finish(unit, t_next, reached)
+        return self._share(ticking, clock() - a)
+
+    @staticmethod
+    def _share(units: list[Unit], dt: float) -> float:
+        """Split the FMUs' time of a step among the FMUs that stepped (equal shares)."""
+        n = sum(len(u.nodes) for u in units)
+        for unit in units:
+            for node in unit.nodes:
+                node.time_s += dt / n
+        return dt
+
+    def _gather(self, unit: Unit, t_k: float) -> None:
+        for node in unit.gathered:
+            if node.str_inputs:
+                node.set_text(self.text)
+            node.gather(self.bus, self.xbus, t_k)
+        for system in unit.coupled:
+            system.exchange.mark_fresh()
+
+    def _advance(self, unit: Unit, k: int, t_next: float, reached: dict) -> None:
+        """Step the FMUs of ``unit`` to ``t_next`` (``reached``: by ``id(node)``, the time it
+        reached and whether its outputs binding was read there already)."""
+        t_start = self.t0 + (k + 1 - unit.period) * self.h
+        for system in unit.coupled:
+            self.busy = (system.nodes[0].adapter.name, system.call, t_start, time.monotonic())
+            try:
+                t_reached = system.integrator.step(t_start, t_next - t_start)
+            finally:
+                self.busy = None
+                if system.integrator.terminated is not None:
+                    for node in system.nodes:
+                        node.adapter.sync_terminated()
+            # the exchange at the end of the step read the outputs of the fresh ones at t_next
+            fresh = system.fresh if system.integrator.terminated is None else ()
+            for node in system.nodes:
+                reached[id(node)] = (t_reached, id(node) in fresh)
+        for node in unit.single:
+            ad = node.adapter
+            self.busy = (ad.name, "doStep", t_start, time.monotonic())
+            try:
+                t_reached = ad.do_step(t_start, t_next - t_start, node.inputs, node.input_fn)
+            finally:
+                self.busy = None
+            stop = ad.terminated
+            reached[id(node)] = (stop[0] if stop is not None else (
+                t_next if t_reached is None else t_reached), False)
+
+    def _finish(self, unit: Unit, t_next: float, reached: dict) -> None:
+        """Read the outputs of ``unit`` after its step, record a request to stop, solve its
+        algebraic loops at ``t_next``."""
+        stopped = False
+        for node in unit.nodes:
+            t_reached, fresh = reached[id(node)]
+            node.read(t_reached, self.bus, self.xbus, self.text, fresh=fresh)
+            stop = node.adapter.terminated
+            if stop is None:
+                continue
+            stopped = True
+            if self.terminated is None:
+                self._stop(node.adapter)
+                if stop[0] < t_next - 1e-9 * self.h:  # inside the step: not on the grid
+                    self._stopped_inside = True
+        if unit.exchange is not None and not stopped:
+            self.busy = (unit.nodes[0].adapter.name, "algebraic loop", t_next,
+                         time.monotonic())
+            try:
+                unit.exchange.run(t_next, "point")
+            finally:
+                self.busy = None
+            for node in unit.nodes:
+                node.read(t_next, self.bus, self.xbus, self.text)
 
     def view(self) -> StepView:
         """The read-only view of the current step that observers get."""
@@ -515,8 +716,15 @@ class Master(SystemChecks):
     def me_solvers(self) -> dict[str, str]:
         """``{fmu: "rk4" | "adaptive" | "cvode"}``: the integrator of each ME FMU (the last one
         used; kept after :meth:`close`: the adapters keep it)."""
-        return {name: ad.solver_used for name, ad in self.adapters.items()
-                if ad.interface == "me" and ad.solver_used is not None}
+        out = {name: ad.solver_used for name, ad in self.adapters.items()
+               if ad.interface == "me" and ad.solver_used is not None}
+        for unit in getattr(self, "units", ()):
+            for system in unit.coupled:
+                if system.integrator is not None:
+                    for name in system.names:
+                        others = ", ".join(n for n in system.names if n != name)
+                        out[name] = f"{system.integrator.solver_name} (integrated with {others})"
+        return out
 
     def fmu_hashes(self) -> dict[str, str]:
         return {n: a.sha256 for n, a in self.adapters.items()}

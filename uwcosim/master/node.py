@@ -12,6 +12,7 @@ one from the master's wiring (:class:`Feed`, one per input value); the master st
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -74,7 +75,7 @@ class Node:
         """Copy this FMU's inputs from the bus (``factor * value + offset`` where given; exact
         64-bit integers from the side bus ``xbus``); a value outside its input's range is an
         :class:`FMUError`."""
-        np.take(bus, self.in_slots, out=self.inputs.view)
+        bus.take(self.in_slots, out=self.inputs.view)  # the method: no dispatch wrapper
         if self.in_affine is not None:
             self.inputs.view *= self.in_affine[0]
             self.inputs.view += self.in_affine[1]
@@ -128,13 +129,17 @@ class Node:
             out[name] = vals if vartypes.is_array(var) else vals[0]
         return out
 
-    def read(self, t: float, bus: np.ndarray, xbus: np.ndarray, text: dict) -> None:
+    def read(self, t: float, bus: np.ndarray, xbus: np.ndarray, text: dict,
+             fresh: bool = False) -> None:
         """Read the outputs at ``t`` onto the bus (64-bit integers exactly onto the side bus
         ``xbus``, the text of String outputs into ``text``); a non-finite numeric output is an
-        :class:`FMUError`."""
-        out = self.adapter.get_outputs(self.outputs, t)
+        :class:`FMUError`. ``fresh``: the outputs binding was just read at ``t`` (by an
+        exchange): no FMI call."""
+        out = self.outputs.view if fresh else self.adapter.get_outputs(self.outputs, t)
         num = out if self.numeric is None else out[self.numeric]
-        if not np.all(np.isfinite(num)):
+        # one sum is cheaper than an elementwise test; a NaN or an infinity shows in it (an
+        # overflow of finite values too: then the elementwise test finds nothing)
+        if not math.isfinite(num.sum()) and not np.all(np.isfinite(num)):
             self._not_finite(num, t)
         bus[self.out_slots] = out
         if self.wide_out is not None:

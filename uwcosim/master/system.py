@@ -21,6 +21,9 @@ builds one in code::
     m.run_until(3.0)
     m.close()
 
+The master algorithm (``algorithm``), what an algebraic loop means (``algebraic_loops``) and its
+solver's ``loop_tolerance`` and ``loop_max_iterations`` are fields of the system too.
+
 The FMU, source and sensor types are validated dataclasses (pydantic): types are strict (a
 string is never taken for a number), unknown keywords, NaN and infinity are refused, and the
 checks that need no FMU (one kind of control, one PSD per target, one sigma per noise input)
@@ -70,8 +73,9 @@ class FMU:
 
     path: Str | Path
     interface: Literal["cs", "me"] = "cs"
-    #: ME only: ``rk4`` (fixed step, ``substeps`` per communication step) or ``adaptive``
-    solver: Literal["rk4", "adaptive"] = "rk4"
+    #: ME only: ``rk4`` (fixed step, ``substeps`` per communication step), ``adaptive``
+    #: (DOP853) or ``cvode`` (CVode even without events); an FMU with events uses CVode
+    solver: Literal["rk4", "adaptive", "cvode"] = "rk4"
     substeps: PositiveInt = 1
     #: communication period as an integer multiple of the system's step
     period: PositiveInt = 1
@@ -210,6 +214,17 @@ class System:
     observe: list[str] = field(default_factory=list)
     #: what an FMU's request to stop means: ``"stop"`` (status terminated) or ``"error"``
     stop_on_terminate: Literal["stop", "error"] = "stop"
+    #: the master algorithm (:mod:`uwcosim.master.algorithms`): ``"gauss-seidel"`` (units in
+    #: dependency order, each from the bus as it is when its turn comes) or ``"jacobi"``
+    #: (every unit from the values of the previous communication point)
+    algorithm: Literal["gauss-seidel", "jacobi"] = "gauss-seidel"
+    #: an algebraic loop between FMUs is solved (``"solve"``: Newton, :mod:`uwcosim.master.loops`)
+    #: or an ``"error"`` when the system is built
+    algebraic_loops: Literal["solve", "error"] = "solve"
+    #: convergence of a loop: every residual ``|r_i| <= loop_tolerance * (1 + |u_i|)``
+    loop_tolerance: float = 1e-10
+    #: Newton iterations allowed per solve
+    loop_max_iterations: int = 50
     name: str = "system"
     #: relative FMU and map paths are relative to this folder (default: the working folder)
     base_dir: Path | None = None

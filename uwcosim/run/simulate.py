@@ -32,6 +32,7 @@ still has its ``summary.json``.
 
 from __future__ import annotations
 
+import functools
 import json
 import platform
 from dataclasses import dataclass
@@ -76,6 +77,12 @@ PACKAGES = ("uwcosim", "fmpy", "numpy", "scipy", "casadi", "pyarrow")
 
 def package_versions() -> dict[str, str]:
     """Versions of the packages a run depends on (logged in the metadata)."""
+    return dict(_versions())
+
+
+@functools.cache
+def _versions() -> dict[str, str]:
+    # read once per process (importlib.metadata parses every package's METADATA: 8 ms)
     out = {}
     for p in PACKAGES:
         try:
@@ -374,6 +381,10 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                 guard.wait_for_exit()
             if logger is not None and failure is not None:
                 _flush_steps(bank, recorder)
+                stop = master.terminated
+                if stop is not None and master.stopped_between_steps():
+                    # stop_on_terminate = "error": the same last row as "stop" writes
+                    recorder.final(master.view(), stop.time)
             if guard.signum is not None and failure is not None:
                 failure = RunInterrupted(f"interrupted at t={last_time():g} by "
                                          f"{signal_name(guard.signum)}")

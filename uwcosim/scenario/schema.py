@@ -69,6 +69,15 @@ class RunSpec(Strict):
     stop_on_terminate: Literal["stop", "error"] = "stop"
     #: run-wide watchdog (s): an FMU call lasting longer ends the run (failed, log kept)
     fmu_timeout_s: PositiveFloat | None = None
+    #: the master algorithm: "gauss-seidel" (dependency order) or "jacobi" (every FMU from
+    #: the values of the previous communication point)
+    algorithm: Literal["gauss-seidel", "jacobi"] = "gauss-seidel"
+    #: an algebraic loop between FMUs is solved (Newton) or refused when the scenario loads
+    algebraic_loops: Literal["solve", "error"] = "solve"
+    #: a loop converged when every residual |r_i| <= loop_tolerance * (1 + |u_i|)
+    loop_tolerance: PositiveFloat = 1e-10
+    #: Newton iterations allowed per solve of a loop
+    loop_max_iterations: PositiveInt = 50
     #: the estimators run over blocks of this many steps, one after the other, after the
     #: co-simulation computed them (faster: their data stay in the CPU caches); the results
     #: do not depend on it; 1 = every estimator at every step

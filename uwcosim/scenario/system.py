@@ -29,6 +29,8 @@ def to_system(loaded: LoadedScenario) -> System:
         measured=list(spec.model.sensors) if spec.model is not None else [],
         observe=[p for p in spec.log.signals if not any(c in p for c in "*?")]
         + (list(spec.model.truth) if spec.model is not None else []),
-        stop_on_terminate=spec.run.stop_on_terminate, name=spec.name,
+        stop_on_terminate=spec.run.stop_on_terminate, algorithm=spec.run.algorithm,
+        algebraic_loops=spec.run.algebraic_loops, loop_tolerance=spec.run.loop_tolerance,
+        loop_max_iterations=spec.run.loop_max_iterations, name=spec.name,
         base_dir=loaded.base_dir, where=str(loaded.path),
     )

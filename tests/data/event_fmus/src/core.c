@@ -282,3 +282,29 @@ Status core_do_step(Instance *c, double t, double h, double *t_reached) {
     *t_reached = c->time;
     return S_OK;
 }
+
+#ifdef MODEL_DIRECTIONAL
+Status core_directional(Instance *c, const unsigned unknowns[], size_t n_unknown,
+                        const unsigned knowns[], size_t n_known, const double seed[],
+                        double sensitivity[], const char *function) {
+    size_t i, j;
+    if (core_check_mode(c, MODES(M_INIT) | MODES(M_EVENT) | MODES(M_CONT) | MODES(M_STEP),
+                        function) != S_OK)
+        return S_ERROR;
+    model_calc(c);
+    for (i = 0; i < n_unknown; i++) {
+        double sum = 0.0;
+        for (j = 0; j < n_known; j++) {
+            double d;
+            if (model_partial(c, unknowns[i], knowns[j], &d) != S_OK) {
+                core_log(c, S_ERROR, "%s: no partial derivative of value reference %u with "
+                         "respect to %u", function, unknowns[i], knowns[j]);
+                return S_ERROR;
+            }
+            sum += d * seed[j];
+        }
+        sensitivity[i] = sum;
+    }
+    return S_OK;
+}
+#endif

@@ -1,6 +1,6 @@
 /* core.h - the model-independent part of the uwcosim event test FMUs.
  *
- * Each model (BouncingBall, Stair, TypedBlock, Feedthrough) provides a config.h (name,
+ * Each model (BouncingBall, Stair, TypedBlock, Feedthrough, ...) provides a config.h (name,
  * instantiation tokens, numbers of states and event indicators, the ModelData struct) and a
  * model.c (variable table and equations). The core keeps the instance (mode, time, event
  * information), checks when a variable may be set, and implements the co-simulation step
@@ -86,6 +86,11 @@ void model_nominals(Instance *c, double nominal[]);
 void model_indicators(Instance *c, double z[]);
 void model_update(Instance *c);             /* one pass of the discrete (event) update */
 bool model_step_event(Instance *c);         /* after an integrator step: enter event mode? */
+#ifdef MODEL_DIRECTIONAL
+/* d(unknown)/d(known) at the current values (models that define MODEL_DIRECTIONAL in config.h
+ * provide directional derivatives); S_ERROR for a pair the model does not know */
+Status model_partial(Instance *c, unsigned unknown, unsigned known, double *d);
+#endif
 
 /* ---- core.c ---- */
 Instance *core_new(const char *name, bool me, LogFn log, void *env);
@@ -103,5 +108,11 @@ Status core_exit_init(Instance *c);
 Status core_update(Instance *c);            /* one event update pass (FMI newDiscreteStates) */
 Status core_do_step(Instance *c, double t, double h, double *t_reached);
 double core_time_tol(double t);
+#ifdef MODEL_DIRECTIONAL
+/* sensitivity = d(unknowns)/d(knowns) * seed, from model_partial */
+Status core_directional(Instance *c, const unsigned unknowns[], size_t n_unknown,
+                        const unsigned knowns[], size_t n_known, const double seed[],
+                        double sensitivity[], const char *function);
+#endif
 
 #endif

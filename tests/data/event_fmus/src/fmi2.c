@@ -4,8 +4,8 @@
  * variables (range-checked to 32 bits), Boolean and String their own. Co-simulation handles
  * all events inside fmi2DoStep; a request to terminate ends fmi2DoStep with fmi2Discard,
  * fmi2GetBooleanStatus(fmi2Terminated) = fmi2True and fmi2GetRealStatus(fmi2LastSuccessfulTime)
- * = the time reached. Not supported (fmi2Error and a log message): FMU states, directional
- * derivatives, input derivatives, asynchronous steps.
+ * = the time reached. Directional derivatives where the model defines MODEL_DIRECTIONAL. Not
+ * supported (fmi2Error and a log message): FMU states, input derivatives, asynchronous steps.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -330,9 +330,15 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
                                         size_t nUnknown, const fmi2ValueReference vKnown_ref[],
                                         size_t nKnown, const fmi2Real dvKnown[],
                                         fmi2Real dvUnknown[]) {
+#ifdef MODEL_DIRECTIONAL
+    if (c == NULL) return fmi2Error;
+    return (fmi2Status)core_directional((Instance *)c, vUnknown_ref, nUnknown, vKnown_ref, nKnown,
+                                        dvKnown, dvUnknown, "fmi2GetDirectionalDerivative");
+#else
     (void)vUnknown_ref; (void)nUnknown; (void)vKnown_ref; (void)nKnown; (void)dvKnown;
     (void)dvUnknown;
     return unsupported(c, "fmi2GetDirectionalDerivative");
+#endif
 }
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                        const fmi2Integer order[], const fmi2Real value[]) {

@@ -6,8 +6,9 @@
  * terminateSimulation = true with lastSuccessfulTime = the time reached, and earlyReturn = true
  * if that is before the end of the step and the importer allowed early return.
  * Configuration mode (entered from the instantiated mode) is where structural parameters are set.
- * Not supported (an error status and a log message): FMU states, directional and adjoint
- * derivatives, clocks, binaries, reconfiguration in step mode, scheduled execution.
+ * Directional derivatives where the model defines MODEL_DIRECTIONAL. Not supported (an error
+ * status and a log message): FMU states, adjoint derivatives, clocks, binaries, reconfiguration
+ * in step mode, scheduled execution.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -362,9 +363,21 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance,
                                         const fmi3ValueReference knowns[], size_t nKnowns,
                                         const fmi3Float64 seed[], size_t nSeed,
                                         fmi3Float64 sensitivity[], size_t nSensitivity) {
+#ifdef MODEL_DIRECTIONAL
+    Instance *c = (Instance *)instance;
+    if (c == NULL) return fmi3Error;
+    if (nSeed != nKnowns || nSensitivity != nUnknowns) {
+        core_log(c, S_ERROR, "fmi3GetDirectionalDerivative: the scalar variables of " MODEL_NAME
+                 " need nSeed = nKnowns and nSensitivity = nUnknowns");
+        return fmi3Error;
+    }
+    return (fmi3Status)core_directional(c, unknowns, nUnknowns, knowns, nKnowns, seed,
+                                        sensitivity, "fmi3GetDirectionalDerivative");
+#else
     (void)unknowns; (void)nUnknowns; (void)knowns; (void)nKnowns; (void)seed; (void)nSeed;
     (void)sensitivity; (void)nSensitivity;
     return unsupported(instance, "fmi3GetDirectionalDerivative");
+#endif
 }
 
 fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[],

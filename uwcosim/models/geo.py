@@ -65,9 +65,13 @@ class LocalFrame:
 
     def to_latlon(self, x, y) -> tuple[np.ndarray, np.ndarray]:
         """``(lat, lon)`` in degrees of points in metres (NaN stays NaN)."""
-        lon, lat = self._transformer.transform(np.asarray(x, dtype=float),
-                                               np.asarray(y, dtype=float), direction="INVERSE")
-        return np.asarray(lat, dtype=float), np.asarray(lon, dtype=float)
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        lon, lat = self._transformer.transform(x, y, direction="INVERSE")
+        bad = ~(np.isfinite(x) & np.isfinite(y))
+        lat, lon = np.asarray(lat, dtype=float), np.asarray(lon, dtype=float)
+        if bad.any():
+            lat, lon = np.where(bad, np.nan, lat), np.where(bad, np.nan, lon)
+        return lat, lon
 
     def metadata(self) -> dict:
         """What the log records of the frame (``geo`` in its metadata)."""

@@ -10,13 +10,14 @@ Row ``k`` is the bus at step ``k`` (:meth:`LogRecorder.on_step`) joined with the
 step ``k`` (:meth:`LogRecorder.estimates`, which the estimator bank calls when it has filtered
 the block the step belongs to): rows are paired by their step index and written in order as
 soon as both halves are there. :meth:`LogRecorder.flush` writes what still waits at the end of
-a run (with NaN estimates where the bank has none).
+a run (with NaN estimates where the bank has none). Columns computed from a row (a
+georeferenced run's latitude/longitude) are filled by the ``derive`` function given.
 """
 
 from __future__ import annotations
 
 import fnmatch
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -41,8 +42,12 @@ class LogRecorder:
     """Writes row ``k`` of the log from the step's view and the estimates of step ``k``."""
 
     def __init__(self, layout: LogLayout, logger: RunLogger, signal_slots: Sequence[int],
-                 exact_slots: Sequence[int] = ()) -> None:
+                 exact_slots: Sequence[int] = (),
+                 derive: Callable[[np.ndarray], None] | None = None) -> None:
+        """``derive(row)``: fills the columns computed from the rest of a row before it is
+        written (a georeferenced run's latitude/longitude, :mod:`uwcosim.run.geocolumns`)."""
         self.layout, self.logger = layout, logger
+        self.derive = derive
         self.sig = np.asarray(signal_slots, dtype=np.intp)
         self.exact = list(exact_slots)
         self.n_flags = len(layout.flags)
@@ -78,6 +83,8 @@ class LogRecorder:
         row, received, exact = self._rows.pop(k)
         values, diverged = estimates
         row[self.layout.estimates] = values
+        if self.derive is not None:
+            self.derive(row)
         self.logger.append(row, np.array(received + diverged, dtype=bool), exact)
         self._next = k + 1
 

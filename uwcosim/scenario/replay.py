@@ -133,8 +133,9 @@ def replay_problems(spec, where: str) -> list[str]:
             out.append(f"key 'sensors.{name}': a replay takes only 'outputs' (the measurement "
                        f"names) and 'sigma' (the filters' R); losses and sampling are the "
                        f"file's")
-    if spec.estimators and spec.model is None:
-        out.append("key 'model': a replay needs the filters' model")
+    if spec.model is None or not spec.estimators:
+        out.append("key 'model': a replay needs the filters' model and [estimators] (it "
+                   "replays the measurements through them)")
     m = spec.model
     if m is not None:
         outputs = [o for s in m.sensors if s in spec.sensors for o in spec.sensors[s].outputs]

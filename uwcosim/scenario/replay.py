@@ -121,6 +121,9 @@ def replay_problems(spec, where: str) -> list[str]:
     r = spec.replay
     out: list[str] = []
     why = "a replay has no FMUs: its measurements and controls come from replay.file"
+    if spec.run.step is not None:
+        out.append("key 'run.step': a replay takes its steps from the file's time column "
+                   "(leave run.step out)")
     for key, given in (("fmus", spec.fmus), ("connections", spec.connections),
                        ("noise", spec.noise), ("system", spec.system)):
         if given:

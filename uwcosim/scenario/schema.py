@@ -94,13 +94,10 @@ class ReplayRunSpec(RunSpec):
     given) the rows from it on."""
 
     duration: PositiveFloat | None = None
-    step: PositiveFloat | None = None
+    step: PositiveFloat | None = None  # refused (replay_problems): the file gives the steps
 
     @model_validator(mode="after")
     def _steps(self) -> ReplayRunSpec:
-        if self.step is not None:
-            raise ValueError("'step': a replay takes its steps from the file's time column "
-                             "(leave run.step out)")
         return self
 
 

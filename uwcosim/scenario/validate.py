@@ -243,7 +243,7 @@ def reference_problems(spec: Scenario, where: str) -> list[Problem]:
                 if s not in m.sensors:
                     out.append(f"key 'estimators.{ename}.sensors': {s!r} is not among "
                                f"model.sensors ({', '.join(m.sensors)})")
-    if spec.run.step is not None:
+    if spec.run.step is not None and spec.run.duration is not None:
         n = spec.run.duration / spec.run.step
         if abs(n - round(n)) > 1e-9 * max(1.0, n):
             out.insert(0, f"key 'run.duration': must be a whole number of steps of "

@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -50,8 +51,10 @@ def _end_window(cols, truth_names, est_names, states):
     tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
     n = tx.size
     k0 = max(0, n - max(5, n // 20))
-    worst = [np.nanmax(np.hypot(ex[k0:] - tx[k0:], ey[k0:] - ty[k0:]), initial=np.nan)
-             for ex, ey in (_position(cols, e, states) for e in est_names)]
+    with warnings.catch_warnings():  # a replay's sparse reference: no value at the end
+        warnings.simplefilter("ignore", RuntimeWarning)
+        worst = [np.nanmax(np.hypot(ex[k0:] - tx[k0:], ey[k0:] - ty[k0:]), initial=np.nan)
+                 for ex, ey in (_position(cols, e, states) for e in est_names)]
     worst = np.array([w for w in worst if np.isfinite(w)])
     if not np.isfinite(tx[-1]) or not np.isfinite(ty[-1]):
         return None

@@ -11,9 +11,9 @@ import pyarrow as pa
 import pyarrow.csv as pcsv
 import pytest
 
+from uwcosim.api import run_scenario
 from uwcosim.models.geo import LocalFrame
 from uwcosim.models.terrain import load_map, map_frame
-from uwcosim.api import run_scenario
 from uwcosim.runlog import columns, read_log
 
 h5netcdf = pytest.importorskip("h5netcdf")

@@ -18,8 +18,6 @@ the origin, metres east/north). A map in metres (``.npz``, a synthetic map) with
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from pydantic import BaseModel, ConfigDict, Field, StrictStr
 
 from uwcosim.core.errors import MapError, ScenarioError
@@ -27,8 +25,8 @@ from uwcosim.models.geo import LocalFrame
 from uwcosim.models.states import MODEL_STATES, position_velocity_indices
 from uwcosim.models.terrain import map_frame
 
-if TYPE_CHECKING:
-    from uwcosim.scenario.loaded import LoadedScenario
+# ``loaded`` below is a :class:`uwcosim.scenario.loaded.LoadedScenario` (not imported: the
+# schema imports this module, and the loaded scenario the schema)
 
 class LatLon(BaseModel):
     """A geographic position (WGS 84, degrees)."""
@@ -88,7 +86,7 @@ def geo_problems(spec, where: str) -> list[str]:
     return out
 
 
-def scenario_frame(loaded: LoadedScenario) -> LocalFrame | None:
+def scenario_frame(loaded) -> LocalFrame | None:
     """The local frame of a scenario (None when it is not georeferenced): ``[geo] origin``,
     else the centre of its latitude/longitude ``[map]`` file."""
     spec = loaded.spec
@@ -107,7 +105,7 @@ def scenario_frame(loaded: LoadedScenario) -> LocalFrame | None:
     return None
 
 
-def start_values(loaded: LoadedScenario, frame: LocalFrame | None) -> dict[str, dict]:
+def start_values(loaded, frame: LocalFrame | None) -> dict[str, dict]:
     """``{fmu: {variable: value}}``: the start values ``[geo] start`` gives (simulation)."""
     spec = loaded.spec
     geo = getattr(spec, "geo", None)

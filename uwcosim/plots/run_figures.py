@@ -131,7 +131,8 @@ def trajectory_figure(cols: Columns, truth_names: Names, est_names: Names, state
         im = ax.contourf(GX, GY, D, levels=30, cmap="viridis_r")
         cax = make_axes_locatable(ax).append_axes("right", size="4%", pad=0.1)
         fig.colorbar(im, cax=cax, label="depth (m)")
-    lines = [ax.plot(tx, ty, "k-", lw=2, label="truth", **_sparse(tx))[0]]
+    style = _sparse(tx)
+    lines = [ax.plot(tx, ty, "k-", lw=2, label="reference" if style else "truth", **style)[0]]
     for name in est_names:
         lines += ax.plot(*_position(cols, name, states), lw=1, label=name)
     ax.plot(tx[0], ty[0], "ko")
@@ -174,7 +175,8 @@ def _trajectory_latlon(cols, truth_xy, est_names, states, bathy, lims, path, fra
 
     x0, x1, y0, y1 = lims
     tx, ty = truth_xy
-    fig, ax = plt.subplots(figsize=(7.5, 7.0), dpi=110)
+    ratio = float(np.clip((y1 - y0) / (x1 - x0), 0.45, 1.3)) if x1 > x0 else 1.0
+    fig, ax = plt.subplots(figsize=(7.5, 5.9 * ratio + 1.5), dpi=110)
     if bathy is not None:
         GX, GY = np.meshgrid(np.linspace(x0, x1, 200), np.linspace(y0, y1, 200))
         D = bathy.depth(GX.ravel(), GY.ravel()).reshape(GX.shape)
@@ -183,12 +185,18 @@ def _trajectory_latlon(cols, truth_xy, est_names, states, bathy, lims, path, fra
         cax = make_axes_locatable(ax).append_axes("right", size="4%", pad=0.1)
         fig.colorbar(im, cax=cax, label="depth (m)")
     lat, lon = frame.to_latlon(tx, ty)
-    lines = [ax.plot(lon, lat, "k-", lw=2, label="truth", **_sparse(lon))[0]]
+    style = _sparse(lon)
+    lines = [ax.plot(lon, lat, "k-", lw=2, label="reference" if style else "truth",
+                     **style)[0]]
     for name in est_names:
         elat, elon = frame.to_latlon(*_position(cols, name, states))
         lines += ax.plot(elon, elat, lw=1, label=name)
     ax.plot(lon[0], lat[0], "ko")
-    ax.set_aspect(1.0 / np.cos(np.deg2rad(frame.lat0)), adjustable="datalim")
+    # the view: the metric window's corners in degrees; equal ground scales on both axes
+    cla, clo = frame.to_latlon(np.array([x0, x1, x0, x1]), np.array([y0, y0, y1, y1]))
+    ax.set_xlim(float(clo.min()), float(clo.max()))
+    ax.set_ylim(float(cla.min()), float(cla.max()))
+    ax.set_aspect(1.0 / np.cos(np.deg2rad(frame.lat0)), adjustable="box")
     ax.set_xlabel("longitude (°)")
     ax.set_ylabel("latitude (°)")
     ax.ticklabel_format(useOffset=False, style="plain")

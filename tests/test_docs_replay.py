@@ -111,6 +111,17 @@ def test_the_walk_through(tmp_path, cli, monkeypatch):
         assert cmd in block, cmd
 
 
+def test_the_example_validates_against_the_json_schema():
+    jsonschema = pytest.importorskip("jsonschema")
+    import tomllib
+
+    from uwcosim.scenario.json_schema import scenario_json_schema
+
+    validator = jsonschema.Draft202012Validator(scenario_json_schema())
+    data = tomllib.loads((EXAMPLE / "mission.toml").read_text())
+    assert list(validator.iter_errors(data)) == []
+
+
 def test_the_readme_links_the_page():
     text = (ROOT / "README.md").read_text()
     assert "docs/replay.md" in text

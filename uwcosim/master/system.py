@@ -101,7 +101,7 @@ class ConnectionTransform:
 Connection = tuple[Str, Str] | tuple[Str, Str, ConnectionTransform]
 
 
-def table_problem(table) -> str:
+def table_problem(table: list) -> str:
     """Why ``[[t, value], ...]`` is not a control table (empty string if it is one): at least
     one row, times never decreasing, a time at most twice. A time given twice is a step
     discontinuity (the value jumps there), as fmpy's ``simulate_fmu(input=...)`` and

@@ -383,3 +383,25 @@ def test_bad_control_files_are_one_line_errors(tmp_path, tan, cli, project_fmus)
                            f"controls.a={ctl}")
         assert code == 2 and len(err) == 1 and "key 'controls.a" in err[0], err
         assert expected in err[0], err[0]
+
+
+def test_missing_columns_lost_and_figures_without_a_reference(tmp_path, cli):
+    """``missing_columns = "lost"``: a mapped measurement column the file does not have is
+    never received (a note says so); a replay without any reference still draws its
+    estimates."""
+    t = np.arange(12) * 1.5
+    pcsv.write_csv(pa.table({"t": t, "x": 2.0 * t}), tmp_path / "fixes.csv")
+    text = _cv_scenario("fixes.csv", extra='missing_columns = "lost"')
+    scen = _replay(tmp_path, text)
+    code, _, err = cli("run", scen, "--out", tmp_path / "run")
+    assert code == 0, err
+    cols, _ = read_log(tmp_path / "run" / "log.parquet")
+    assert not cols["z.gps.py_m.received"].any() and cols["z.gps.px_m.received"][1:].all()
+    import json
+    s = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert any("gps.py_m has no column 'y'" in n for n in s["notes"])
+    assert (tmp_path / "run" / "trajectory.png").is_file()
+    # without the setting, the same file is an error naming the column
+    code, _, err = cli("run", _replay(tmp_path, _cv_scenario("fixes.csv"), name="b.toml"),
+                       "--out", tmp_path / "run2")
+    assert code == 2 and "column 'y' is not in" in err[0]

@@ -43,8 +43,14 @@ def _print_result(result) -> None:
         print(f"uwcosim: FMU '{stop['fmu']}' requested termination at t={stop['time_s']:g}"
               f"{reason} (run ended, log kept)", file=sys.stderr)
     t = s["timing"]
-    print(f"master overhead {1e6 * t['master_overhead_per_step_s']:.1f} us/step, "
-          f"FMUs {1e6 * t['fmus_per_step_s']:.1f} us/step")
+    rp = s.get("replay")
+    if rp:
+        print(f"replayed {rp['rows']} rows of {rp['file']} (steps {rp['dt_min_s']:g} .. "
+              f"{rp['dt_max_s']:g} s), replay overhead "
+              f"{1e6 * t['master_overhead_per_step_s']:.1f} us/step")
+    else:
+        print(f"master overhead {1e6 * t['master_overhead_per_step_s']:.1f} us/step, "
+              f"FMUs {1e6 * t['fmus_per_step_s']:.1f} us/step")
     print(f"run directory: {result.out_dir}")
 
 

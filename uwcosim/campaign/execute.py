@@ -68,15 +68,18 @@ def execute_run(task: Task) -> dict:
         else:
             tmp = tempfile.mkdtemp(prefix="uwcosim_run_")
             out = Path(tmp)
-        cached, master = _master_for(key, loaded)
+        # a replay has no FMUs to keep: its source is made by each run
+        cached, master = _master_for(key, loaded) if loaded.spec.replay is None \
+            else (None, None)
         try:
             res = run_scenario(loaded, out, seed=task.seed, figures=False, master=master)
         except BaseException:
             # the instances may be in an error state: drop them, the next run starts afresh
             _MASTERS.pop(key, None)
-            master.close()
+            if master is not None:
+                master.close()
             raise
-        if cached is None:
+        if cached is None and master is not None:
             master.close()
         record["estimators"] = res.summary["estimators"]
         record["timing"] = res.summary["timing"]

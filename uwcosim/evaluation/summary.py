@@ -12,7 +12,10 @@ state dimension; 1 for a consistent filter), the fraction of NEES values inside 
 chi-square 95% band, the mean NIS, the divergence flag, and from ``simulation.json`` the time
 per step (median, 95th percentile) and total. A plain co-simulation run (no estimators) has an
 empty ``estimators``; a run an FMU stopped has status ``terminated`` and ``termination``
-``{fmu, time_s, reason}``.
+``{fmu, time_s, reason}``. A replay's reference may have values at some steps only (sparse
+fixes): the metrics are then over the steps that have one, each estimator's
+``reference_steps`` counts them and a note says so; a replay's ``simulation.json`` (and so its
+summary) has ``replay``: the file, its rows and time stamps.
 
 Older runs: a log without the names of states, truth signals and estimators in its metadata has
 them recovered from the column names and ``[model] truth`` of the logged scenario text; a run
@@ -29,6 +32,7 @@ import numpy as np
 
 from uwcosim.core.errors import UwcosimError
 from uwcosim.evaluation.metrics import chi2_ppf, run_rmse
+from uwcosim.models.states import position_velocity_indices
 from uwcosim.runlog import columns, read_log
 from uwcosim.runlog.rundir import SIMULATION_FILE, read_json, write_json
 from uwcosim.scenario.overrides import apply_override, parse_overrides
@@ -91,6 +95,30 @@ def log_names(cols: dict, meta: dict) -> tuple[list[str], list[str], list[str], 
     return names, states, truth, notes
 
 
+def _reference_notes(cols: dict, truth: list[str], states: list[str], meta: dict,
+                     estimators: dict) -> list[str]:
+    """When the truth has steps without a value (a replay's reference: sparse fixes, or none):
+    each estimator's ``reference_steps`` (steps 1.. with a position reference) and a note
+    saying over which steps the metrics are. Nothing for a full truth (every simulation)."""
+    X = np.stack([cols[c] for c in truth], axis=1)[1:]
+    have = np.isfinite(X)
+    if have.all():
+        return []
+    pos = position_velocity_indices(states)[0]
+    with_pos = int(np.all(have[:, pos], axis=1).sum()) if pos else int(have.all(axis=1).sum())
+    for m in estimators.values():
+        m["reference_steps"] = with_pos
+    n = X.shape[0]
+    src = f"the replay's reference ({meta['replay']['file']})" if "replay" in meta \
+        else "the truth"
+    if not have.any():
+        return [f"{src} has no value at any step: no accuracy metrics (RMSE, NEES are NaN)"]
+    lacking = [s for s, c in zip(states, have.T) if not c.any()]
+    tail = f"; no reference for {', '.join(lacking)} (their RMSE is NaN)" if lacking else ""
+    return [f"{src} has a position at {with_pos} of the {n} filtered steps: RMSE and NEES "
+            f"are over the steps that have a reference (NEES: those with every state){tail}"]
+
+
 def _without_metrics(summary: dict) -> dict:
     """What an older ``summary.json`` says about the simulation (its metrics are recomputed)."""
     out = dict(summary)
@@ -144,6 +172,7 @@ def evaluate(run_dir: str | Path, out: str | Path | None = None, write: bool = T
             m = estimator_metrics(cols, name, truth, states)
             m.update(run_info.get(name, {}))
             summary["estimators"][name] = m
+        notes += _reference_notes(cols, truth, states, meta, summary["estimators"])
     if notes:
         summary["notes"] = list(dict.fromkeys([*summary.get("notes", []), *notes]))
     if write:

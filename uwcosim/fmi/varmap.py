@@ -37,11 +37,12 @@ from uwcosim.core.tomlfile import read_toml
 #: our units and the FMU units we convert: name -> (factor to the SI unit, SI unit)
 UNITS: dict[str, tuple[float, str]] = {
     "m": (1.0, "m"), "km": (1000.0, "m"), "ft": (0.3048, "m"), "nmi": (1852.0, "m"),
+    "cm": (0.01, "m"),
     "rad": (1.0, "rad"), "deg": (math.pi / 180.0, "rad"),
     "m/s": (1.0, "m/s"), "km/h": (1.0 / 3.6, "m/s"), "ft/s": (0.3048, "m/s"),
-    "knots": (1852.0 / 3600.0, "m/s"),
+    "knots": (1852.0 / 3600.0, "m/s"), "cm/s": (0.01, "m/s"), "mm/s": (0.001, "m/s"),
     "m/s2": (1.0, "m/s2"), "ft/s2": (0.3048, "m/s2"),
-    "s": (1.0, "s"), "min": (60.0, "s"), "h": (3600.0, "s"),
+    "s": (1.0, "s"), "min": (60.0, "s"), "h": (3600.0, "s"), "ms": (0.001, "s"),
 }
 _ALIASES = {"kn": "knots", "knot": "knots", "kt": "knots", "kts": "knots", "m/s^2": "m/s2",
             "m/s²": "m/s2", "ft/s^2": "ft/s2", "kph": "km/h", "degree": "deg", "degrees": "deg",

@@ -87,6 +87,13 @@ class StepView:
         """The base step."""
         return self._master.h
 
+    @property
+    def dt(self) -> float:
+        """The duration of the step that ended at ``k``, which the filters predict over: the
+        master's grid is uniform, its base step ``h`` (a replay's view, whose steps are the gaps
+        between the file's time stamps, overrides it: :mod:`uwcosim.run.replay`)."""
+        return self._master.h
+
     def signals(self, slots: np.ndarray) -> np.ndarray:
         """A copy of the bus at ``slots``."""
         return self.bus[slots]

@@ -38,18 +38,36 @@ if TYPE_CHECKING:
 
 
 class TableControl:
-    """A piecewise-linear (or held) table ``[[t, value], ...]``, constant beyond its ends."""
+    """A piecewise-linear (or held) table ``[[t, value], ...]``, constant beyond its ends.
+
+    A time given twice is a step: the value is continuous from the right there (from that
+    time on, the second row's value; as fmpy applies inputs at a communication point, after
+    the event). The master does not cut a step at a jump: put jump times on the
+    communication grid (an ME FMU's integrator, which evaluates the table at its stages,
+    otherwise sees the jump inside a step)."""
 
     def __init__(self, spec: Control) -> None:
         table = np.asarray(spec.table, dtype=float)
         self.t, self.v = table[:, 0], table[:, 1]
         self.hold = spec.interpolation == "hold"
+        self.steps = bool(np.any(np.diff(self.t) == 0))  # repeated times: jumps
 
     def value(self, t: float | np.ndarray) -> float | np.ndarray:
         if self.hold:
             i = np.searchsorted(self.t, t, side="right") - 1
             return self.v[np.clip(i, 0, len(self.v) - 1)]
-        return np.interp(t, self.t, self.v)
+        if not self.steps:
+            return np.interp(t, self.t, self.v)
+        # right-continuous: the segment [t_j, t_{j+1}) with t_j <= t < t_{j+1}; at a repeated
+        # time t_j is its second row, so a jump takes effect at its time
+        tt = np.asarray(t, dtype=float)
+        j = np.clip(np.searchsorted(self.t, tt, side="right") - 1, 0, len(self.t) - 2)
+        t0, t1, v0, v1 = self.t[j], self.t[j + 1], self.v[j], self.v[j + 1]
+        with np.errstate(divide="ignore", invalid="ignore"):  # clipped ends: replaced below
+            w = np.clip((tt - t0) / (t1 - t0), 0.0, 1.0)
+        out = np.where(tt >= self.t[-1], self.v[-1], v0 + w * (v1 - v0))
+        out = np.where(tt < self.t[0], self.v[0], out)
+        return out if out.ndim else float(out)
 
     def samples(self, times: np.ndarray) -> np.ndarray:
         return np.asarray(self.value(times), dtype=float)

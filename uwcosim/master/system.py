@@ -50,7 +50,8 @@ from pydantic import (
 from pydantic.dataclasses import dataclass as record
 
 __all__ = ["FMU", "BernoulliLoss", "Connection", "ConnectionTransform", "Control",
-           "GilbertElliottLoss", "Loss", "Noise", "Sensor", "System", "Termination"]
+           "GilbertElliottLoss", "Loss", "Noise", "Sensor", "System", "Termination",
+           "table_problem"]
 
 #: the validation of every record: unknown keywords, NaN and infinity refused
 RECORD_CONFIG = ConfigDict(extra="forbid", allow_inf_nan=False)
@@ -104,9 +105,31 @@ class ConnectionTransform:
 Connection = tuple[Str, Str] | tuple[Str, Str, ConnectionTransform]
 
 
+def table_problem(table: list) -> str:
+    """Why ``[[t, value], ...]`` is not a control table (empty string if it is one): at least
+    one row, times never decreasing, a time at most twice. A time given twice is a step
+    discontinuity (the value jumps there), as fmpy's ``simulate_fmu(input=...)`` and
+    OMSimulator read input tables."""
+    times = [t for t, _ in table]
+    if not times:
+        return "'table' needs at least one [time, value] row"
+    for i, (a, b) in enumerate(zip(times, times[1:]), start=1):
+        if b < a:
+            return (f"'table': times must not decrease (row {i + 1} has t={b!r} after t={a!r}; "
+                    f"a time given twice is a step)")
+        if b == a and i + 1 < len(times) and times[i + 1] == b:
+            return (f"'table': time {b!r} is given more than twice (twice is a step: the "
+                    f"values before and after it)")
+    return ""
+
+
 @record(config=RECORD_CONFIG)
 class Control:
-    """A control input driven by the master: a time table, or the heading to waypoints."""
+    """A control input driven by the master: a time table, or the heading to waypoints.
+
+    ``table`` rows ``[t, value]`` with times never decreasing; a time given twice is a step
+    (the value before, then after it: the control takes the second from that time on), as
+    fmpy and OMSimulator read time-stamped inputs."""
 
     target: Str
     table: list[tuple[Float, Float]] | None = None
@@ -120,9 +143,9 @@ class Control:
         if (self.table is None) == (self.waypoints is None):
             raise ValueError("give exactly one of 'table' or 'waypoints'")
         if self.table is not None:
-            times = [t for t, _ in self.table]
-            if not times or any(b <= a for a, b in zip(times, times[1:])):
-                raise ValueError("'table' needs at least one [time, value] row, times increasing")
+            problem = table_problem(self.table)
+            if problem:
+                raise ValueError(problem)
         if self.waypoints is not None and len(self.waypoints) < 1:
             raise ValueError("'waypoints' needs at least one [x, y] point")
         return self

@@ -11,7 +11,9 @@ mirror boundaries, padded by three mirrored coefficients on each side), defined 
 - the DepthSounder FMU's C kernel, which reads :meth:`Bathymetry.write_coefficients` files.
 
 Maps come from :func:`synthetic_bathymetry` (seeded spectral synthesis) or :func:`load_map`
-(``.npz`` or NetCDF as GEBCO distributes it).
+(``.npz`` or NetCDF as GEBCO distributes it). A map in latitude/longitude is projected to the
+local transverse Mercator frame of :mod:`uwcosim.models.geo` (centred on the map, or on the
+origin the caller gives) and resampled onto a regular grid of that frame.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from scipy import ndimage
 
 from uwcosim.core import bspline
 from uwcosim.core.errors import MapError
+from uwcosim.models.geo import LocalFrame, grid_centre, project_grid
 
 PAD = 3
 MAGIC = b"UWCBATH1"
@@ -223,44 +226,73 @@ def _grid_from_axes(x: np.ndarray, y: np.ndarray, z: np.ndarray, where: str) -> 
 
 
 def _local_metric(lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Equirectangular projection about the grid centre (metres east/north of the SW corner)."""
+    """Equirectangular projection about the grid centre (metres east/north of the SW corner):
+    ``projection = "equirectangular"``, the projection of earlier versions."""
     lat0 = np.deg2rad(0.5 * (lat[0] + lat[-1]))
     x = EARTH_RADIUS_M * np.cos(lat0) * np.deg2rad(lon - lon[0])
     y = EARTH_RADIUS_M * np.deg2rad(lat - lat[0])
     return x, y
 
 
-def load_map(path: str | Path, variable: str | None = None) -> Bathymetry:
+def load_map(path: str | Path, variable: str | None = None, *,
+             origin: tuple[float, float] | None = None, projection: str = "tmerc",
+             resolution: float | None = None) -> Bathymetry:
     """Read a user grid.
 
     - ``.npz`` with arrays ``x``, ``y`` (m) and ``depth`` (m, positive down) or ``elevation``
       (m, negative below sea level), shaped ``[len(y), len(x)]``;
-    - NetCDF (``.nc``), as GEBCO distributes it: ``lon``/``lat`` in degrees (projected
-      equirectangularly about the grid centre to metres) or ``x``/``y`` in metres, and
-      ``elevation`` (or ``depth``, or ``variable``).
+    - NetCDF (``.nc``), as GEBCO distributes it: ``x``/``y`` in metres, or ``lon``/``lat``
+      in degrees, and ``elevation`` (or ``depth``, or ``variable``).
+
+    A latitude/longitude grid is projected (``projection = "tmerc"``, the default) to the
+    local transverse Mercator frame centred on ``origin`` (``(lat, lon)`` in degrees; default:
+    the grid's centre, :func:`map_frame`) and resampled by the grid's cubic spline in
+    longitude/latitude onto a regular grid of that frame with as many nodes as the source (or
+    spaced by ``resolution`` metres): :func:`uwcosim.models.geo.project_grid`.
+    ``projection = "equirectangular"`` keeps the grid's nodes and places them by an
+    equirectangular projection about its centre (metres from its south-west corner), as
+    earlier versions did.
     """
+    arrays, path = _read_arrays(path)
+    try:
+        return _bathymetry_from_arrays(arrays, variable, str(path), origin, projection,
+                                       resolution)
+    except MapError as exc:  # name the file in every message
+        msg = str(exc)
+        raise MapError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
+    except (ValueError, TypeError) as exc:
+        raise MapError(f"{path}: map arrays are not numeric ({exc})") from None
+
+
+def _read_arrays(path: str | Path) -> tuple[dict, Path]:
     path = Path(path)
     if not path.is_file():
         raise MapError(f"{path}: map file not found")
     try:
         if path.suffix == ".npz":
             with np.load(path) as data:
-                arrays = {k: data[k] for k in data.files}
-        elif path.suffix in (".nc", ".nc4", ".netcdf"):
-            arrays = _read_netcdf(path)
-        else:
-            raise MapError(f"{path}: unknown map format (expected .npz or .nc)")
+                return {k: data[k] for k in data.files}, path
+        if path.suffix in (".nc", ".nc4", ".netcdf"):
+            return _read_netcdf(path), path
+        raise MapError(f"{path}: unknown map format (expected .npz or .nc)")
     except MapError:
         raise
     except Exception as exc:  # noqa: BLE001 - any reader failure is a bad file
         raise MapError(f"{path}: cannot read map ({exc})") from None
+
+
+def map_frame(path: str | Path) -> LocalFrame | None:
+    """The local frame of a latitude/longitude map file (centred on its grid), or None for a
+    map in metres."""
+    arrays, path = _read_arrays(path)
+    if "x" in arrays and "y" in arrays or not ("lon" in arrays and "lat" in arrays):
+        return None
     try:
-        return _bathymetry_from_arrays(arrays, variable, str(path))
-    except MapError as exc:  # name the file in every message
-        msg = str(exc)
-        raise MapError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
-    except (ValueError, TypeError) as exc:
-        raise MapError(f"{path}: map arrays are not numeric ({exc})") from None
+        lat, lon = _increasing(arrays["lat"], "lat", str(path)), \
+            _increasing(arrays["lon"], "lon", str(path))
+        return LocalFrame(*grid_centre(lat, lon))
+    except ValueError as exc:
+        raise MapError(f"{path}: {exc}") from None
 
 
 def _read_netcdf(path: Path) -> dict[str, np.ndarray]:
@@ -276,7 +308,17 @@ def _read_netcdf(path: Path) -> dict[str, np.ndarray]:
             return {k: np.array(v[...]) for k, v in f.variables.items()}
 
 
-def _bathymetry_from_arrays(arrays: dict, variable: str | None, where: str) -> Bathymetry:
+def _increasing(axis, name: str, where: str) -> np.ndarray:
+    a = np.asarray(axis, dtype=float).ravel()
+    if a.size < 4 or not np.all(np.diff(a) > 0):
+        raise MapError(f"{where}: axis {name!r} must be increasing and uniformly spaced")
+    return a
+
+
+def _bathymetry_from_arrays(arrays: dict, variable: str | None, where: str,
+                            origin: tuple[float, float] | None = None,
+                            projection: str = "tmerc",
+                            resolution: float | None = None) -> Bathymetry:
     names = [variable] if variable else ["depth", "elevation", "z"]
     key = next((n for n in names if n in arrays), None)
     if key is None:
@@ -285,9 +327,23 @@ def _bathymetry_from_arrays(arrays: dict, variable: str | None, where: str) -> B
     if key == "elevation":
         z = -z
     if "x" in arrays and "y" in arrays:
-        x, y = arrays["x"], arrays["y"]
-    elif "lon" in arrays and "lat" in arrays:
-        x, y = _local_metric(np.asarray(arrays["lon"], float), np.asarray(arrays["lat"], float))
-    else:
+        return _grid_from_axes(arrays["x"], arrays["y"], z, where)
+    if not ("lon" in arrays and "lat" in arrays):
         raise MapError(f"{where}: no coordinate axes (expected x/y in metres or lon/lat)")
-    return _grid_from_axes(x, y, z, where)
+    lon, lat = np.asarray(arrays["lon"], float).ravel(), np.asarray(arrays["lat"], float).ravel()
+    if lat.size > 1 and np.all(np.diff(lat) < 0):  # north to south: turn it over
+        lat, z = lat[::-1], z[::-1]
+    if projection == "equirectangular":
+        x, y = _local_metric(lon, lat)
+        return _grid_from_axes(x, y, z, where)
+    if projection != "tmerc":
+        raise MapError(f"{where}: unknown projection {projection!r} (expected tmerc or "
+                       f"equirectangular)")
+    src = _grid_from_axes(lon, lat, z, where)  # the spline in longitude/latitude
+    try:
+        frame = LocalFrame(*(origin if origin is not None else grid_centre(lat, lon)))
+        x, y, (la, lo) = project_grid(lat, lon, frame, resolution)
+    except ValueError as exc:
+        raise MapError(f"{where}: {exc}") from None
+    return Bathymetry(float(x[0]), float(y[0]), float(x[1] - x[0]), float(y[1] - y[0]),
+                      src.depth(lo, la))

@@ -1,12 +1,15 @@
 """Figures of one run and its ``report.md``.
 
-- ``trajectory.png``: truth and estimates over the bathymetry map;
+- ``trajectory.png``: truth and estimates over the bathymetry map, axes in metres or (a
+  georeferenced run, ``[output] trajectory_axes = "latlon"``) in degrees of longitude and
+  latitude;
 - ``position_error.png``: position error of each estimator against time with its 3-sigma bound;
 - ``position_error_norm.png``: the position error norm per step of the run;
 """
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -15,6 +18,7 @@ if TYPE_CHECKING:
 
     import numpy as np
 
+    from uwcosim.models.geo import LocalFrame
     from uwcosim.models.terrain import Bathymetry
 
     #: log columns by name, and lists of names
@@ -47,8 +51,10 @@ def _end_window(cols, truth_names, est_names, states):
     tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
     n = tx.size
     k0 = max(0, n - max(5, n // 20))
-    worst = [np.nanmax(np.hypot(ex[k0:] - tx[k0:], ey[k0:] - ty[k0:]), initial=np.nan)
-             for ex, ey in (_position(cols, e, states) for e in est_names)]
+    with warnings.catch_warnings():  # a replay's sparse reference: no value at the end
+        warnings.simplefilter("ignore", RuntimeWarning)
+        worst = [np.nanmax(np.hypot(ex[k0:] - tx[k0:], ey[k0:] - ty[k0:]), initial=np.nan)
+                 for ex, ey in (_position(cols, e, states) for e in est_names)]
     worst = np.array([w for w in worst if np.isfinite(w)])
     if not np.isfinite(tx[-1]) or not np.isfinite(ty[-1]):
         return None
@@ -71,20 +77,50 @@ def _inset_corner(tx, ty, lims) -> tuple[float, float]:
     return corners[int(np.argmin(hidden))]
 
 
+def _sparse(v: np.ndarray) -> dict:
+    """Line style of a series: markers when most of its steps have no value (a replay's
+    sparse fixes: a line would not show them)."""
+    fin = np.isfinite(v)
+    return {"marker": ".", "ms": 4} if fin.any() and fin.mean() < 0.5 else {}
+
+
+def _extent(cols: Columns, truth_xy, est_names: Names, states: Names):
+    """``(xmin, xmax, ymin, ymax)`` of the truth, or of the estimates where it has no value."""
+    tx, ty = truth_xy
+    if not (np.isfinite(tx).any() and np.isfinite(ty).any()):
+        pts = [_position(cols, e, states) for e in est_names]
+        tx = np.concatenate([p[0] for p in pts]) if pts else np.zeros(1)
+        ty = np.concatenate([p[1] for p in pts]) if pts else np.zeros(1)
+    if not (np.isfinite(tx).any() and np.isfinite(ty).any()):
+        return 0.0, 1.0, 0.0, 1.0
+    return (float(np.nanmin(tx)), float(np.nanmax(tx)), float(np.nanmin(ty)),
+            float(np.nanmax(ty)))
+
+
 def trajectory_figure(cols: Columns, truth_names: Names, est_names: Names, states: Names,
-                      bathy: Bathymetry | None, path: Path) -> Path:
+                      bathy: Bathymetry | None, path: Path,
+                      frame: LocalFrame | None = None) -> Path:
     """Track and estimates over the map, a colorbar the height of the axes and an inset that
-    zooms on the end of the run (at map scale the estimates hide under the truth)."""
+    zooms on the end of the run (at map scale the estimates hide under the truth). With
+    ``frame``, the axes are longitude and latitude (degrees; the frame's inverse projection of
+    everything drawn, the map's contours included). A truth with values at few steps (a
+    replay's fixes) is drawn as points."""
     from mpl_toolkits.axes_grid1 import make_axes_locatable
 
     ix, iy = position_velocity_indices(states)[0]
     tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
-    pad = 1500.0 if bathy is not None else 0.1 * max(np.ptp(tx), np.ptp(ty), 10.0)
-    x0, x1 = np.nanmin(tx) - pad, np.nanmax(tx) + pad
-    y0, y1 = np.nanmin(ty) - pad, np.nanmax(ty) + pad
+    ex0, ex1, ey0, ey1 = _extent(cols, (tx, ty), est_names, states)
+    pad = 1500.0 if bathy is not None else 0.1 * max(ex1 - ex0, ey1 - ey0, 10.0)
+    x0, x1 = ex0 - pad, ex1 + pad
+    y0, y1 = ey0 - pad, ey1 + pad
     if bathy is not None:
         xmin, xmax, ymin, ymax = bathy.extent
         x0, x1, y0, y1 = max(xmin, x0), min(xmax, x1), max(ymin, y0), min(ymax, y1)
+        if not (x0 < x1 and y0 < y1):  # the track is off the map: the map's extent
+            x0, x1, y0, y1 = xmin, xmax, ymin, ymax
+    if frame is not None:
+        return _trajectory_latlon(cols, (tx, ty), est_names, states, bathy,
+                                  (x0, x1, y0, y1), path, frame)
     # the figure takes the shape of the view (equal axes): no empty bands around it
     ratio = float(np.clip((y1 - y0) / (x1 - x0), 0.45, 1.3)) if x1 > x0 else 1.0
     fig, ax = plt.subplots(figsize=(7.5, 5.9 * ratio + 1.5), dpi=110)
@@ -95,7 +131,8 @@ def trajectory_figure(cols: Columns, truth_names: Names, est_names: Names, state
         im = ax.contourf(GX, GY, D, levels=30, cmap="viridis_r")
         cax = make_axes_locatable(ax).append_axes("right", size="4%", pad=0.1)
         fig.colorbar(im, cax=cax, label="depth (m)")
-    lines = [ax.plot(tx, ty, "k-", lw=2, label="truth")[0]]
+    style = _sparse(tx)
+    lines = [ax.plot(tx, ty, "k-", lw=2, label="reference" if style else "truth", **style)[0]]
     for name in est_names:
         lines += ax.plot(*_position(cols, name, states), lw=1, label=name)
     ax.plot(tx[0], ty[0], "ko")
@@ -132,6 +169,45 @@ def trajectory_figure(cols: Columns, truth_names: Names, est_names: Names, state
     return path
 
 
+def _trajectory_latlon(cols, truth_xy, est_names, states, bathy, lims, path, frame) -> Path:
+    """:func:`trajectory_figure` with longitude/latitude axes (no inset)."""
+    from mpl_toolkits.axes_grid1 import make_axes_locatable
+
+    x0, x1, y0, y1 = lims
+    tx, ty = truth_xy
+    ratio = float(np.clip((y1 - y0) / (x1 - x0), 0.45, 1.3)) if x1 > x0 else 1.0
+    fig, ax = plt.subplots(figsize=(7.5, 5.9 * ratio + 1.5), dpi=110)
+    if bathy is not None:
+        GX, GY = np.meshgrid(np.linspace(x0, x1, 200), np.linspace(y0, y1, 200))
+        D = bathy.depth(GX.ravel(), GY.ravel()).reshape(GX.shape)
+        la, lo = frame.to_latlon(GX, GY)
+        im = ax.contourf(lo, la, D, levels=30, cmap="viridis_r")
+        cax = make_axes_locatable(ax).append_axes("right", size="4%", pad=0.1)
+        fig.colorbar(im, cax=cax, label="depth (m)")
+    lat, lon = frame.to_latlon(tx, ty)
+    style = _sparse(lon)
+    lines = [ax.plot(lon, lat, "k-", lw=2, label="reference" if style else "truth",
+                     **style)[0]]
+    for name in est_names:
+        elat, elon = frame.to_latlon(*_position(cols, name, states))
+        lines += ax.plot(elon, elat, lw=1, label=name)
+    ax.plot(lon[0], lat[0], "ko")
+    # the view: the metric window's corners in degrees; equal ground scales on both axes
+    cla, clo = frame.to_latlon(np.array([x0, x1, x0, x1]), np.array([y0, y0, y1, y1]))
+    ax.set_xlim(float(clo.min()), float(clo.max()))
+    ax.set_ylim(float(cla.min()), float(cla.max()))
+    ax.set_aspect(1.0 / np.cos(np.deg2rad(frame.lat0)), adjustable="box")
+    ax.set_xlabel("longitude (°)")
+    ax.set_ylabel("latitude (°)")
+    ax.ticklabel_format(useOffset=False, style="plain")
+    ax.set_title("Trajectory and estimates")
+    fig.tight_layout(rect=(0, 0.4 / fig.get_figheight(), 1, 1))
+    fig.legend(handles=lines, loc="lower center", ncol=4, fontsize=7, frameon=False)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
 def error_figure(cols: Columns, truth_names: Names, est_names: Names, states: Names,
                  path: Path) -> Path:
     """Position error (x solid, y dashed) and their 3-sigma bounds (x: hatched band, y: plain
@@ -154,8 +230,8 @@ def error_figure(cols: Columns, truth_names: Names, est_names: Names, states: Na
         by = ax.fill_between(t, -sy, sy, color="C1", alpha=0.18, lw=0, label="±3σ y")
         ax.plot(t, sy, "C1:", lw=0.8)
         ax.plot(t, -sy, "C1:", lw=0.8)
-        lx, = ax.plot(t, ex, "C0-", lw=0.9, label="error x")
-        ly, = ax.plot(t, ey, "C1--", lw=0.9, label="error y")
+        lx, = ax.plot(t, ex, "C0-", lw=0.9, label="error x", **_sparse(ex))
+        ly, = ax.plot(t, ey, "C1--", lw=0.9, label="error y", **_sparse(ey))
         handles = [lx, bx, ly, by]
         ax.axhline(0.0, color="0.6", lw=0.5)
         ax.set_ylabel(f"{name} (m)")
@@ -185,7 +261,7 @@ def error_norm_figure(cols: Columns, truth_names: Names, est_names: Names, state
     for name in est_names:
         ex, ey = _position(cols, name, states)
         e = np.hypot(ex - tx, ey - ty)
-        ax.plot(t, e, lw=0.8, label=name)
+        ax.plot(t, e, lw=0.8, label=name, **_sparse(e))
     ax.set_yscale("log")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("position error norm (m)")

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from uwcosim.models.geo import LocalFrame
 from uwcosim.models.states import position_velocity_indices
 from uwcosim.plots.density_figures import draw_densities
 from uwcosim.plots.run_figures import error_figure, error_norm_figure, trajectory_figure
@@ -32,7 +33,11 @@ def write_figures(run: RunFiles, out: Path) -> list[Path]:
     paths: list[Path] = []
     if run.has_estimates and position_velocity_indices(run.states)[0]:
         args = (run.cols, run.truth, run.estimators, run.states)
-        paths.append(trajectory_figure(*args, run.bathymetry, out / "trajectory.png"))
+        geo = run.meta.get("geo") or {}
+        frame = LocalFrame.from_metadata(geo) if geo.get("trajectory_axes") == "latlon" \
+            else None
+        paths.append(trajectory_figure(*args, run.bathymetry, out / "trajectory.png",
+                                       frame=frame))
         paths.append(error_figure(*args, out / "position_error.png"))
         paths.append(error_norm_figure(*args, out / "position_error_norm.png"))
     if run.density_file is not None:
@@ -49,6 +54,14 @@ def markdown_report(run: RunFiles, figures: list[Path]) -> str:
     lines.append(f"Seed {s.get('seed')}, {s.get('steps')} steps of "
                  f"{step:g} s, status {status}." if isinstance(step, int | float)
                  else f"Seed {s.get('seed')}, status {status}.")
+    rp = s.get("replay")
+    if rp:
+        lines.append(f"Replay of `{rp['file']}` (sha256 {rp['sha256'][:12]}): {rp['rows']} rows "
+                     f"(of {rp['rows_in_file']}), steps of {rp['dt_min_s']:g} to "
+                     f"{rp['dt_max_s']:g} s (median {rp['dt_median_s']:g} s).")
+    geo = run.meta.get("geo")
+    if geo:
+        lines.append(f"Georeferenced: local frame `{geo['crs']}`.")
     if s.get("error"):
         lines.append(f"Error: {s['error']}")
     if s.get("notes"):
@@ -59,8 +72,8 @@ def markdown_report(run: RunFiles, figures: list[Path]) -> str:
         lines.append(results_table(s))
     timing = s.get("timing", {})
     if timing:
-        lines.append(f"Master overhead per step: "
-                     f"{_fmt_us(timing, 'master_overhead_per_step_s')}; FMUs per step: "
+        lines.append(("Replay overhead per step: " if rp else "Master overhead per step: ")
+                     + f"{_fmt_us(timing, 'master_overhead_per_step_s')}; FMUs per step: "
                      f"{_fmt_us(timing, 'fmus_per_step_s')}.\n")
     lines += [f"![{p.stem.replace('_', ' ')}]({p.name})\n" for p in figures]
     if run.notes:

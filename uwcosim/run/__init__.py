@@ -2,7 +2,8 @@
 
 The simulate stage (``simulate``: master, estimator bank, log), the estimator bank
 (``bank``) with its divergence checks (``divergence``, ``scan``), the log recorder
-(``recorder``), the density snapshots (``density``), the filters' model of a scenario
-(``factory``) and ``uwcosim check``'s FMU and filter levels (``preflight``). See
-``docs/architecture.md``.
+(``recorder``; a georeferenced log's latitude/longitude: ``geocolumns``), the density
+snapshots (``density``), the filters' model of a scenario (``factory``), the replay of a
+recorded file in the master's place (``replay``) and ``uwcosim check``'s FMU, replay and
+filter levels (``preflight``). See ``docs/architecture.md``.
 """

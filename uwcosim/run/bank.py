@@ -1,6 +1,7 @@
 """Drives a scenario's estimators from the master, as an observer of its steps.
 
-At each communication step ``t_k -> t_{k+1}`` every estimator predicts with the control held
+At each step ``t_k -> t_{k+1}`` every estimator predicts over the step's duration (the view's
+``dt``: the master's base step, or the gap between a replay's time stamps) with the control held
 over the step, then updates with the measurements received at ``t_{k+1}`` (common random
 numbers: all estimators see the same :class:`~uwcosim.master.measurement.Measurement`, from the
 master's sensor bank, which the log records too), after its lost-measurement policy has
@@ -19,9 +20,11 @@ estimates). Each filtered step's estimates go to the bank's ``sink`` with the st
 (the log recorder, :meth:`uwcosim.run.recorder.LogRecorder.estimates`).
 
 At ``k = 0`` (the start time) the bank builds its estimators at the truth plus the initial
-error, from :class:`EstimatorPlan` s (:func:`plans`: what ``[estimators]`` and
-``[estimation]`` of a scenario say); the truth, control and measurement layout come from the
-run layer (:func:`uwcosim.run.simulate.simulate`), not from the master.
+error (``[estimation] initial_state`` replaces the truth of the states it names; a replay's
+reference, which may be missing there, is its truth), from :class:`EstimatorPlan` s
+(:func:`plans`: what ``[estimators]`` and ``[estimation]`` of a scenario say); the truth,
+control and measurement layout come from the run layer
+(:func:`uwcosim.run.simulate.simulate`), not from the master.
 
 A diverging estimator (:mod:`uwcosim.run.divergence`: non-finite state,
 covariance not symmetric positive definite, negative NIS/NEES, position out of bounds) is
@@ -59,11 +62,13 @@ Sink = Callable[[int, np.ndarray, list[bool]], None]
 
 @dataclass(frozen=True)
 class _Step:
-    """What the estimators need of one communication step ``t - h -> t`` (step ``k``)."""
+    """What the estimators need of one step ``t - dt -> t`` (step ``k``); ``dt`` is the
+    step's own duration (:attr:`~uwcosim.master.observer.StepView.dt`: the master's base step,
+    or a replay's gap between two time stamps)."""
 
     k: int
     t: float
-    h: float
+    dt: float
     u: np.ndarray  # controls held over the step
     z: np.ndarray
     received: np.ndarray
@@ -147,6 +152,7 @@ class EstimatorBank:
         err0 = init_rng.standard_normal(model.nx) * std0
         if est_common is not None and est_common.initial_error == "zero":
             err0[:] = 0.0
+        x_true0 = self._initial_mean(t0, x_true0)
         self.tracks = []
         for plan in self.plans:
             std = plan.initial_std if plan.initial_std is not None else std0
@@ -161,6 +167,25 @@ class EstimatorBank:
             est.t = t0
             policy = POLICIES.get(plan.policy)(model.nz)
             self.tracks.append(Track(plan.name, est, policy, plan.use))
+
+    def _initial_mean(self, t0: float, x_true0: np.ndarray) -> np.ndarray:
+        """The truth at the start time, with ``[estimation] initial_state`` for the states it
+        names; every state needs a value (a replay's reference may have none there)."""
+        x0 = np.array(x_true0, dtype=float)
+        names = list(self.model.state_names)
+        given = (self.estimation.initial_state or {}) if self.estimation is not None else {}
+        for s, v in given.items():
+            if s not in names:
+                raise ScenarioError(f"{self.where}: key 'estimation.initial_state.{s}': not a "
+                                    f"state of the filters' model ({', '.join(names)})")
+            x0[names.index(s)] = v
+        missing = [names[i] for i in np.flatnonzero(~np.isfinite(x0))]
+        if missing:
+            raise ScenarioError(f"{self.where}: key 'estimation.initial_state': no truth or "
+                                f"reference at t={t0:g} for {', '.join(missing)}: the "
+                                f"estimators start there; give them, e.g. initial_state = "
+                                f"{{{', '.join(f'{m} = 0.0' for m in missing)}}}")
+        return x0
 
     def live(self) -> list[tuple[str, Estimator]]:
         """``(name, estimator)`` of every estimator that has not diverged."""
@@ -178,7 +203,7 @@ class EstimatorBank:
             self._emit(0, *self.current())
             return
         meas = view.measurement()
-        self._pending.append(_Step(k, view.t, view.h, view.signals(self.control_slots),
+        self._pending.append(_Step(k, view.t, view.dt, view.signals(self.control_slots),
                                    meas.z.copy(), meas.received.copy(),
                                    view.signals(self.truth_slots)))
         # the log's row k is step k (row 0: the start): a row group ends after row k when
@@ -225,7 +250,7 @@ class EstimatorBank:
             for j, st in enumerate(steps):
                 t0 = time.perf_counter()
                 try:
-                    est.predict(st.u, st.h)
+                    est.predict(st.u, st.dt)
                     est.t = st.t
                     z_in, mask = tr.policy(st.t, st.z, st.received & tr.use)
                     mask = np.asarray(mask, dtype=bool) & tr.use

@@ -31,8 +31,12 @@ def scenario_map(loaded: LoadedScenario) -> Bathymetry | None:
     m = loaded.spec.map
     if m is None:
         return None
-    if m.kind == "file":
-        return load_map(loaded.resolve(m.file), m.variable)
+    if m.kind == "file":  # a lat/lon file: projected to the frame of [geo] origin or its centre
+        geo = getattr(loaded.spec, "geo", None)
+        origin = (geo.origin.lat, geo.origin.lon) if geo is not None and geo.origin else None
+        res = m.resolution if "resolution" in m.model_fields_set else None
+        return load_map(loaded.resolve(m.file), m.variable, origin=origin,
+                        projection=m.projection, resolution=res)
     return synthetic_bathymetry(m.seed, m.extent, m.resolution, relief_std=m.relief_std)
 
 

@@ -15,6 +15,9 @@ the file, the key and what was expected:
    constructed at the initial state (what the constructors check: measurement names, grid
    memory, ...).
 
+A replay scenario (``[replay]``) has no FMUs: its second level is :func:`check_replay`, the
+recorded file read and checked (columns, units, time stamps) as a run reads it.
+
 :func:`check_scenario` runs all three (exit 0 ok, 2 scenario problems, 3 FMU problems only);
 levels that depend on a refused one are skipped.
 """
@@ -32,6 +35,7 @@ from uwcosim.filters.base import build
 from uwcosim.master.master import Master
 from uwcosim.run.factory import build_model, scenario_map
 from uwcosim.run.recorder import pattern_problems
+from uwcosim.run.replay import replay_source
 from uwcosim.scenario.load import read_scenario
 from uwcosim.scenario.loaded import LoadedScenario
 from uwcosim.scenario.system import to_system
@@ -78,6 +82,17 @@ def check_fmus(loaded: LoadedScenario) -> list[Problem]:
         master.close()
 
 
+def check_replay(loaded: LoadedScenario) -> list[Problem]:
+    """A replay's file against its ``[replay]`` mapping (read as :func:`uwcosim.run.simulate.
+    simulate` reads it: columns, types, units, time stamps)."""
+    try:
+        model = build_model(loaded, scenario_map(loaded))
+        replay_source(loaded, None, tuple(model.measurement_names))
+    except UwcosimError as exc:
+        return [Problem.of(exc)]
+    return []
+
+
 def check_filters(loaded: LoadedScenario) -> list[Problem]:
     """Read the map, build the filters' model and construct every estimator at ``x = 0``."""
     spec, where = loaded.spec, str(loaded.path)
@@ -119,9 +134,13 @@ def check_scenario(path: str | Path, overrides: Sequence[str] = (),
     if spec is None:
         return report
     loaded = replace(loaded, spec=spec)
-    fmu = check_fmus(loaded)
-    report.problems += fmu
-    report.checked.append("FMUs")
+    if spec.replay is not None:
+        if not report.problems:
+            report.problems += check_replay(loaded)
+            report.checked.append("replay file")
+    else:
+        report.problems += check_fmus(loaded)
+        report.checked.append("FMUs")
     if not report.problems:
         report.problems += check_filters(loaded)
         report.checked.append("map and filters")

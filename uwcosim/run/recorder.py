@@ -13,14 +13,15 @@ Row ``k`` is the bus at step ``k`` (:meth:`LogRecorder.on_step`) joined with the
 step ``k`` (:meth:`LogRecorder.estimates`, which the estimator bank calls when it has filtered
 the block the step belongs to): rows are paired by their step index and written in order as
 soon as both halves are there. :meth:`LogRecorder.flush` writes what still waits at the end of
-a run (with NaN estimates where the bank has none).
+a run (with NaN estimates where the bank has none). Columns computed from a row (a
+georeferenced run's latitude/longitude) are filled by the ``derive`` function given.
 """
 
 from __future__ import annotations
 
 import difflib
 import fnmatch
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -111,12 +112,16 @@ class LogRecorder:
     def __init__(self, layout: LogLayout, logger: RunLogger, signal_slots: Sequence[int],
                  exact_slots: Sequence[int] = (),
                  exact: Mapping[int, tuple[int, bool]] | None = None,
-                 kinds: Sequence[str] = ()) -> None:
+                 kinds: Sequence[str] = (),
+                 derive: Callable[[np.ndarray], None] | None = None) -> None:
         """``exact_slots``: the bus slots of the logger's exact columns (String, Int64,
         UInt64), in its order; ``exact``: the side bus position and signedness of the 64-bit
         ones (the others: the text of a String, or the bus value of a narrower integer);
-        ``kinds``: "string" or "int" per exact slot."""
+        ``kinds``: "string" or "int" per exact slot. ``derive(row)``: fills the columns
+        computed from the rest of a row before it is written (a georeferenced run's
+        latitude/longitude, :mod:`uwcosim.run.geocolumns`)."""
         self.layout, self.logger = layout, logger
+        self.derive = derive
         self.sig = np.asarray(signal_slots, dtype=np.intp)
         exact = exact or {}
         kinds = list(kinds) or ["string"] * len(exact_slots)
@@ -157,6 +162,8 @@ class LogRecorder:
         row, received, exact = self._rows.pop(k)
         values, diverged = estimates
         row[self.layout.estimates] = values
+        if self.derive is not None:
+            self.derive(row)
         self.logger.append(row, np.array(received + diverged, dtype=bool), exact)
         self._next = k + 1
 

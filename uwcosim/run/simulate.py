@@ -1,5 +1,9 @@
 """Run one scenario with one seed, in three stages that each leave files in the run directory.
 
+The steps come from the master (a co-simulation of the scenario's FMUs) or, for a scenario
+with ``[replay]``, from the rows of a recorded file (:class:`uwcosim.run.replay.ReplaySource`,
+which plays the master's role for the same observers); the stages are the same.
+
 1. :func:`simulate` -- master + estimators + log: ``log.parquet`` (its metadata names the
    scenario, seed, versions, FMU hashes, states, truth and measurement signals, estimators and
    the map file), ``simulation.json`` (status, error, termination, wall times, the estimators'
@@ -54,7 +58,9 @@ from uwcosim.run.bank import EstimatorBank, plans
 from uwcosim.run.density import DensitySnapshots
 from uwcosim.run.divergence import DivergenceCheck, default_bound
 from uwcosim.run.factory import build_model, scenario_map
+from uwcosim.run.geocolumns import GeoColumns
 from uwcosim.run.recorder import LogRecorder, logged_signals, pattern_problems
+from uwcosim.run.replay import ReplaySource, replay_source
 from uwcosim.runlog import RunLogger
 from uwcosim.runlog.columns import LogLayout
 from uwcosim.runlog.rundir import (
@@ -65,12 +71,13 @@ from uwcosim.runlog.rundir import (
     prepare_out_dir,
     write_json,
 )
+from uwcosim.scenario.geo import scenario_frame
 from uwcosim.scenario.load import load_scenario
 from uwcosim.scenario.loaded import LoadedScenario
 from uwcosim.scenario.system import to_system
 
-__all__ = ["RunResult", "package_versions", "prepare_out_dir", "run_scenario", "simulate",
-           "simulation_record"]
+__all__ = ["RunResult", "estimator_records", "package_versions", "prepare_out_dir",
+           "run_scenario", "simulate", "simulation_record"]
 
 PACKAGES = ("uwcosim", "fmpy", "numpy", "scipy", "casadi", "pyarrow")
 
@@ -110,11 +117,18 @@ class RunResult:
     status: str
 
 
-def simulation_record(master: Master, bank: EstimatorBank | None, loaded: LoadedScenario,
-                      status: str, error: str) -> dict:
+def simulation_record(master: Master | ReplaySource, bank: EstimatorBank | None,
+                      loaded: LoadedScenario, status: str, error: str) -> dict:
     """What the simulate stage measured and how the run ended (``simulation.json``): status,
     error, termination, the time grid reached, wall times of the FMUs and the master, the
     estimators' time per step and divergence reasons, notes."""
+    if isinstance(master, ReplaySource):
+        rec = master.record(status, error)
+        rec["scenario_file"] = str(loaded.path)
+        rec["estimators"] = estimator_records(bank)
+        if master.recording.notes:
+            rec["notes"] = list(master.recording.notes)
+        return rec
     rec = {
         "scenario": master.system.name, "scenario_file": str(loaded.path), "seed": master.seed,
         "status": status, "error": error, "steps": master.k, "step_s": master.h,
@@ -134,6 +148,18 @@ def simulation_record(master: Master, bank: EstimatorBank | None, loaded: Loaded
     k = max(master.k, 1)
     rec["timing"]["master_overhead_per_step_s"] = master.master_time_s / k
     rec["timing"]["fmus_per_step_s"] = sum(n.time_s for n in master.nodes) / k
+    rec["estimators"] = estimator_records(bank)
+    if master.noise_free:
+        spec = loaded.spec
+        rec["notes"] = noise_free_notes(master.system, master.noise_free,
+                                        spec.model is not None and spec.model.q_psd is not None,
+                                        spec.model.control_noise if spec.model else None)
+    return rec
+
+
+def estimator_records(bank: EstimatorBank | None) -> dict[str, dict]:
+    """Each estimator's time per step (median, 95th percentile, total) and divergence reason."""
+    out = {}
     for tr in (bank.tracks if bank is not None else []):
         times = np.asarray(tr.step_times)
         m = {"time_per_step_s": float(np.median(times)) if times.size else float("nan"),
@@ -142,13 +168,8 @@ def simulation_record(master: Master, bank: EstimatorBank | None, loaded: Loaded
              "total_time_s": float(times.sum())}
         if tr.error:
             m["error"] = tr.error
-        rec["estimators"][tr.name] = m
-    if master.noise_free:
-        spec = loaded.spec
-        rec["notes"] = noise_free_notes(master.system, master.noise_free,
-                                        spec.model is not None and spec.model.q_psd is not None,
-                                        spec.model.control_noise if spec.model else None)
-    return rec
+        out[tr.name] = m
+    return out
 
 
 def noise_free_notes(system: System, noise_free: dict[str, str], q_psd_given: bool,
@@ -248,7 +269,13 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
     if bathy is not None and not overrides:  # the report stage reads the map from here
         bathy.write_coefficients(out_dir / MAP_FILE)
     owner = master is None
-    if owner:
+    model = None
+    if spec.replay is not None:  # the steps are the rows of a recorded file
+        if not owner:
+            raise UwcosimError(f"{loaded.path}: a replay scenario takes no master")
+        model = build_model(loaded, bathy)
+        master = replay_source(loaded, seed, tuple(model.measurement_names))
+    elif owner:
         master = Master(to_system(loaded), seed=seed)
     else:
         master.reset(seed)
@@ -263,7 +290,7 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
     log_path = out_dir / LOG_FILE
     logger = recorder = None
     failure: UwcosimError | None = None
-    bank = model = snapshots = None
+    bank = snapshots = None
     completed = False
 
     def last_time() -> float:
@@ -314,15 +341,18 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
         try:
             truth: list[str] = []
             if spec.estimators:
-                model = build_model(loaded, bathy)
+                model = model if model is not None else build_model(loaded, bathy)
                 bank = _add_estimation(master, loaded, bathy, model)
                 truth = list(spec.model.truth)
             signals = logged_signals(master.slots, spec.log.signals, truth, master.shapes)
+            frame = scenario_frame(loaded) if bank is not None else None
+            geo = frame is not None and \
+                len(position_velocity_indices(model.state_names)[0]) == 2
             layout = LogLayout(
                 tuple(signals),
                 tuple(master.sensors.names) if bank is not None else (),
                 tuple(p.name for p in bank.plans) if bank is not None else (),
-                tuple(model.state_names) if bank is not None else ())
+                tuple(model.state_names) if bank is not None else (), geo=geo)
             meta = {
                 "scenario_text": loaded.text, "scenario_sha256": loaded.sha256,
                 "scenario_path": loaded.path.name, "overrides": list(loaded.overrides),
@@ -338,6 +368,11 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                 meta["map"] = MAP_FILE
             if master.variable_maps():  # third-party FMUs: roles, variables and conversions
                 meta["variable_maps"] = master.variable_maps()
+            if isinstance(master, ReplaySource):
+                meta["replay"] = master.recording.metadata()
+            if geo:
+                meta["geo"] = {**frame.metadata(),
+                               "trajectory_axes": spec.output.trajectory_axes}
             slots = {c: master.slot(c, "log.signals") for c in signals}
             dtypes = {c: master.signal_dtype(c) for c in signals}
             logger = RunLogger(log_path, layout.columns, layout.flags, meta,
@@ -346,7 +381,8 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                 layout, logger, [slots[c] for c in signals],
                 [slots[c] for c in logger.exact_columns], master.exact,
                 ["string" if dtypes[c] == np.dtype(object) else "int"
-                 for c in logger.exact_columns])
+                 for c in logger.exact_columns],
+                derive=GeoColumns(layout, frame, truth) if geo else None)
             # the observers, in the order the master calls them (module docstring)
             if bank is not None:
                 bank.sink = recorder.estimates
@@ -363,7 +399,10 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
             master.observers.append(guard)  # after the log row of the step
             guard.check()
             master.initialize(overrides)
-            master.run_until(master.t0 + master.n_steps * master.h)
+            if isinstance(master, ReplaySource):
+                master.run_until()  # every row
+            else:
+                master.run_until(master.t0 + master.n_steps * master.h)
             if bank is not None:  # the last block
                 bank.flush()
                 recorder.flush()

@@ -8,6 +8,9 @@ A run's log has one row per communication step, ``time`` first, then
 - with estimators: the measurements ``z.NAME`` (NaN when not received), then per estimator
   ``E`` one *block*: its mean ``est.E.STATE`` for every state, its variance
   ``est.E.var.STATE`` for every state, ``est.E.nis`` and ``est.E.nees``;
+- in a georeferenced run (:mod:`uwcosim.models.geo`): the latitude and longitude (degrees,
+  WGS 84) of the truth's position, ``truth.lat_deg``, ``truth.lon_deg``, then of each
+  estimator's, ``est.E.lat_deg``, ``est.E.lon_deg``;
 - the Boolean flags, after the float columns: ``z.NAME.received`` per measurement, then
   ``est.E.diverged`` per estimator.
 
@@ -78,6 +81,21 @@ def diverged(estimator: str) -> str:
     return f"{_EST}{estimator}.diverged"
 
 
+#: whose position a latitude/longitude column gives: the truth's, or an estimator's
+TRUTH = None
+
+
+def latitude(estimator: str | None = TRUTH) -> str:
+    """``truth.lat_deg`` or ``est.E.lat_deg``: latitude (degrees) of the truth's or estimator
+    ``E``'s position."""
+    return "truth.lat_deg" if estimator is None else f"{_EST}{estimator}.lat_deg"
+
+
+def longitude(estimator: str | None = TRUTH) -> str:
+    """``truth.lon_deg`` or ``est.E.lon_deg``: longitude (degrees) of the position."""
+    return "truth.lon_deg" if estimator is None else f"{_EST}{estimator}.lon_deg"
+
+
 class EstimateBlock(NamedTuple):
     """Positions inside one estimator's block of a row: ``[mean | variance | nis, nees]``."""
 
@@ -106,6 +124,8 @@ class LogLayout:
     measurements: tuple[str, ...] = ()
     estimators: tuple[str, ...] = ()
     states: tuple[str, ...] = ()
+    #: latitude/longitude columns of the truth and of each estimator (a georeferenced run)
+    geo: bool = False
 
     @property
     def block(self) -> EstimateBlock:
@@ -117,6 +137,9 @@ class LogLayout:
         out = list(self.signals) + [measurement(n) for n in self.measurements]
         for e in self.estimators:
             out += estimator_columns(e, self.states)
+        if self.geo:
+            for owner in (TRUTH, *self.estimators):
+                out += [latitude(owner), longitude(owner)]
         return out
 
     @property
@@ -127,8 +150,7 @@ class LogLayout:
     @property
     def width(self) -> int:
         """Floats per row, ``time`` included."""
-        return 1 + len(self.signals) + len(self.measurements) + self.estimates.stop \
-            - self.estimates.start
+        return self.geo_part.stop
 
     @property
     def signal_part(self) -> slice:
@@ -144,6 +166,12 @@ class LogLayout:
         """Every estimator's block, one after the other."""
         start = self.measurement_part.stop
         return slice(start, start + len(self.estimators) * self.block.width)
+
+    @property
+    def geo_part(self) -> slice:
+        """The latitude/longitude pairs (truth, then each estimator; empty unless ``geo``)."""
+        start = self.estimates.stop
+        return slice(start, start + (2 * (1 + len(self.estimators)) if self.geo else 0))
 
 
 def estimators_in(columns: Iterable[str]) -> list[str]:

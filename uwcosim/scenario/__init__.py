@@ -3,7 +3,8 @@
 The schema (``schema``, reusing the system layer's records), ``--set`` overrides
 (``overrides``), loading (``load``; an SSP as the truth side: ``ssp``), validation that
 reports every problem (``validate``), the JSON Schema (``json_schema``) and the conversion to
-the master's input (``system.to_system``).
+the master's input (``system.to_system``); ``[replay]`` and its file (``replay``), controls read
+from files (``control_files``) and ``[geo]``, the geographic frame (``geo``).
 """
 
 from uwcosim.scenario.load import load_scenario

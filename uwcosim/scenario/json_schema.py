@@ -17,7 +17,7 @@ from pydantic import ConfigDict, Field, create_model
 from uwcosim.filters import ESTIMATORS
 from uwcosim.filters.base import settings_model
 from uwcosim.filters.policies import POLICIES
-from uwcosim.scenario.schema import EstimatorSpec, Scenario
+from uwcosim.scenario.schema import FMU, EstimatorSpec, ReplayRunSpec, Scenario
 
 SCHEMA_ID = "https://uwcosim.invalid/scenario.schema.json"
 
@@ -40,8 +40,11 @@ def _estimator_variants() -> Any:
 
 def scenario_json_schema() -> dict[str, Any]:
     """The JSON Schema (draft 2020-12) of a scenario file."""
+    # one schema for both kinds of scenario: a replay's [run] has no step and no [fmus]
+    # (what depends on [replay] is left to uwcosim check)
     model = create_model("Scenario", __base__=Scenario,
-                         estimators=(dict[str, _estimator_variants()], {}))
+                         estimators=(dict[str, _estimator_variants()], {}),
+                         run=(ReplayRunSpec, ...), fmus=(dict[str, FMU], {}))
     out = model.model_json_schema()
     out = {"$schema": "https://json-schema.org/draft/2020-12/schema", "$id": SCHEMA_ID,
            "title": "uwcosim scenario",

@@ -2,7 +2,9 @@
 
 A scenario names the FMUs and how they connect, the control inputs, the noise, the sensors and
 their loss models, the filter model and estimators, the run length, step and seed, and what to
-log. Unknown keys are errors. :mod:`uwcosim.scenario.validate` reports every error of this
+log; or, instead of FMUs, a recorded file to replay (``[replay]``, :mod:`uwcosim.scenario.replay`:
+a :class:`ReplayScenario`); its geographic frame (``[geo]``, :mod:`uwcosim.scenario.geo`).
+Unknown keys are errors. :mod:`uwcosim.scenario.validate` reports every error of this
 schema at once, checks each ``[estimators.NAME]`` against its filter's settings model and the
 cross-references between sections; the FMU variables (connections, targets, sensors) are
 checked against the FMUs' model descriptions by the master (``uwcosim check`` runs both).
@@ -40,14 +42,17 @@ from uwcosim.master.system import (
     Sensor,
     Str,
 )
+from uwcosim.scenario.control_files import ControlSpec
+from uwcosim.scenario.geo import GeoSpec, LatLon  # noqa: F401 (error tags)
+from uwcosim.scenario.replay import ColumnSpec, GeographicColumns, ReplaySpec  # noqa: F401
 
 # The FMU, connection-transform, control, noise, sensor and loss records are the system
 # layer's own types (:mod:`uwcosim.master.system`), validated the same way as the records
 # below: strict types (a TOML string is never taken for a number, "50" is refused for a
 # duration; a float never for an integer; an integer is a valid float), NaN and infinity refused
 # everywhere (``allow_inf_nan=False``), unknown keys refused.
-__all__ = ["FMU", "BernoulliLoss", "ConnectionTransform", "Control", "GilbertElliottLoss",
-           "Loss", "Noise", "Scenario", "Sensor"]
+__all__ = ["FMU", "BernoulliLoss", "ConnectionTransform", "Control", "ControlSpec",
+           "GilbertElliottLoss", "Loss", "Noise", "ReplayScenario", "Scenario", "Sensor"]
 
 #: more steps than this cannot be represented as ``t0 + k*h`` to the step (2**53 / 1000)
 MAX_STEPS = 9_000_000_000_000
@@ -92,6 +97,19 @@ class RunSpec(Strict):
         return self
 
 
+class ReplayRunSpec(RunSpec):
+    """``[run]`` of a replay: the steps are the file's rows (no ``step``); ``duration`` (s),
+    when given, keeps the rows up to the first replayed time plus it, ``start_time`` (when
+    given) the rows from it on."""
+
+    duration: PositiveFloat | None = None
+    step: PositiveFloat | None = None  # refused (replay_problems): the file gives the steps
+
+    @model_validator(mode="after")
+    def _steps(self) -> ReplayRunSpec:
+        return self
+
+
 class SystemSpec(Strict):
     """The truth side from another tool: an SSP file (see :mod:`uwcosim.scenario.ssp`)."""
 
@@ -107,6 +125,11 @@ class MapSpec(Strict):
     file: Str | None = None
     variable: Str | None = None
     fmu_parameter: Str = "sounder.mapFile"
+    #: a latitude/longitude map file: projected to the local transverse Mercator frame
+    #: (uwcosim.models.geo) or, as earlier versions did, equirectangularly
+    projection: Literal["tmerc", "equirectangular"] = Field(
+        "tmerc", description="projection of a latitude/longitude map file: 'tmerc' (local "
+        "transverse Mercator at the map's centre or [geo] origin) or 'equirectangular'")
 
     @model_validator(mode="after")
     def _file(self) -> MapSpec:
@@ -167,6 +190,11 @@ class EstimationSpec(Strict):
     #: [xmin, xmax, ymin, ymax] (m): an estimate outside is diverged (default: the map's
     #: extent widened by its larger side; uwcosim.run.divergence)
     position_bound: tuple[Float, Float, Float, Float] | None = None
+    #: the estimators' initial mean of these states (by state name), instead of the truth at
+    #: the start time (e.g. a replay without a reference there); the initial error is added
+    initial_state: dict[Str, Float] | None = Field(
+        None, description="initial mean of states by name, e.g. {vx = 0.5, vy = 0} (default: "
+        "the truth, or a replay's reference, at the start time)")
 
     @model_validator(mode="after")
     def _bound(self) -> EstimationSpec:
@@ -185,6 +213,8 @@ class LogSpec(Strict):
 class OutputSpec(Strict):
     figures: Bool = True
     density_snapshots: list[Float] = []
+    #: the trajectory figure's axes: x/y (m) or, for a georeferenced run, longitude/latitude
+    trajectory_axes: Literal["xy", "latlon"] = "xy"
 
 
 class Scenario(Strict):
@@ -194,7 +224,7 @@ class Scenario(Strict):
     system: SystemSpec | None = None
     fmus: dict[Str, FMU]
     connections: list[Connection] = []
-    controls: dict[Str, Control] = {}
+    controls: dict[Str, ControlSpec] = {}
     noise: dict[Str, Noise] = {}
     sensors: dict[Str, Sensor] = {}
     map: MapSpec | None = None
@@ -203,6 +233,8 @@ class Scenario(Strict):
     estimators: dict[Str, EstimatorSpec] = {}
     log: LogSpec = LogSpec()
     output: OutputSpec = OutputSpec()
+    replay: ReplaySpec | None = None
+    geo: GeoSpec | None = None
 
     @field_validator("connections", mode="before")
     @classmethod
@@ -225,3 +257,19 @@ class Scenario(Strict):
                     raise ValueError(f"entry {i}: {'.'.join(map(str, err['loc']))}: "
                                      f"{msg} (expected factor, offset: numbers)") from None
         return value
+
+
+class ReplayScenario(Scenario):
+    """A scenario with ``[replay]``: no FMUs (the file gives the measurements, controls and
+    reference); ``[run]`` without a step. The sections that drive FMUs (``[fmus]``,
+    ``connections``, ``[controls]``, ``[noise]``, ``[system]``) must stay empty
+    (:func:`uwcosim.scenario.replay.replay_problems` says so, key by key)."""
+
+    run: ReplayRunSpec = ReplayRunSpec()
+    fmus: dict[Str, FMU] = {}
+    replay: ReplaySpec
+
+
+def scenario_model(data: dict) -> type[Scenario]:
+    """The schema of scenario data: :class:`ReplayScenario` with a ``[replay]`` table."""
+    return ReplayScenario if isinstance(data.get("replay"), dict) else Scenario

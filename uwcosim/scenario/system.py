@@ -6,25 +6,42 @@ are already the system's own types (the schema reuses them), so the conversion c
 adds the time grid, the seed, the measured sensors (``model.sensors``), the variables to read
 although they are not outputs (``observe``: every ``[log] signals`` entry without a wildcard,
 and ``model.truth``: locals and states are logged by their exact names), the folder relative
-paths are resolved against and the file error messages name.
+paths are resolved against and the file error messages name. Two things are resolved here,
+above the master: a control read from a file (``[controls.NAME] file``) becomes its table
+(:func:`uwcosim.scenario.control_files.control_table`), and ``[geo] start`` becomes start
+values of the truth's position (:func:`uwcosim.scenario.geo.start_values`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 
+from uwcosim.core.errors import ScenarioError
 from uwcosim.master.system import System
+from uwcosim.scenario.control_files import control_table
+from uwcosim.scenario.geo import scenario_frame, start_values
 from uwcosim.scenario.load import LoadedScenario
 
 
 def to_system(loaded: LoadedScenario) -> System:
     """The system of a loaded scenario."""
     spec = loaded.spec
+    where = str(loaded.path)
+    if spec.replay is not None:
+        raise ScenarioError(f"{where}: key 'replay': a replay scenario has no FMUs to "
+                            f"co-simulate (uwcosim run replays it)")
+    fmus = {name: dataclasses.replace(f) for name, f in spec.fmus.items()}
+    geo_start = start_values(loaded, scenario_frame(loaded)) \
+        if getattr(spec, "geo", None) is not None else {}
+    for fmu, values in geo_start.items():
+        fmus[fmu] = dataclasses.replace(fmus[fmu], start={**fmus[fmu].start, **values})
+    controls = {name: control_table(name, c, loaded.base_dir, where)
+                for name, c in spec.controls.items()}
     return System(
-        fmus={name: dataclasses.replace(f) for name, f in spec.fmus.items()},
+        fmus=fmus,
         step=spec.run.step, duration=spec.run.duration,
         start_time=spec.run.start_time, seed=spec.run.seed,
-        connections=[tuple(c) for c in spec.connections], controls=dict(spec.controls),
+        connections=[tuple(c) for c in spec.connections], controls=controls,
         noise=dict(spec.noise), sensors=dict(spec.sensors),
         measured=list(spec.model.sensors) if spec.model is not None else [],
         observe=[p for p in spec.log.signals if not any(c in p for c in "*?")]

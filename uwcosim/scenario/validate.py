@@ -31,7 +31,9 @@ from uwcosim.filters.base import settings_model
 from uwcosim.filters.policies import POLICIES
 from uwcosim.models.states import MODEL_STATES
 from uwcosim.scenario import schema
-from uwcosim.scenario.schema import EstimatorSpec, Scenario
+from uwcosim.scenario.geo import geo_problems
+from uwcosim.scenario.replay import replay_problems
+from uwcosim.scenario.schema import EstimatorSpec, Scenario, scenario_model
 
 
 @dataclass(frozen=True)
@@ -197,7 +199,12 @@ def reference_problems(spec: Scenario, where: str) -> list[Problem]:
         for key, std in stds:
             if std is not None and len(std) != len(states):
                 out.append(f"key '{key}': {len(std)} values; expected {per_state}")
-        for c in m.controls:
+        init = spec.estimation.initial_state if spec.estimation else None
+        for s in init or {}:
+            if s not in states:
+                out.append(f"key 'estimation.initial_state.{s}': not a state of the "
+                           f"{m.kind} model ({', '.join(states)})")
+        for c in m.controls if spec.replay is None else ():  # a replay's: replay_problems
             if c not in spec.controls:
                 out.append(f"key 'model.controls': unknown control {c!r} "
                            f"(controls: {', '.join(spec.controls)})")
@@ -215,7 +222,7 @@ def reference_problems(spec: Scenario, where: str) -> list[Problem]:
         out += _control_noise_problems(spec)
         if m.kind == "tan":
             if len(q) != 4:
-                what = "model.q_psd" if m.q_psd is not None else "noise"
+                what = "model.q_psd" if m.q_psd is not None or spec.replay else "noise"
                 hint = ("; name the control-noise source in model.control_noise or give "
                         "model.q_psd" if len(spec.noise) > 1 and m.control_noise is None
                         and m.q_psd is None else "")
@@ -228,7 +235,7 @@ def reference_problems(spec: Scenario, where: str) -> list[Problem]:
             if len(m.sensors) == 2 and spec.map is None:
                 out.append("key 'map': a depth sensor needs a map")
         if m.kind == "cv" and len(q) not in (1, 4):
-            what = "model.q_psd" if m.q_psd is not None else "noise"
+            what = "model.q_psd" if m.q_psd is not None or spec.replay else "noise"
             out.append(f"key '{what}': the constant-velocity model needs 1 or 4 process-noise "
                        f"PSDs (px, vx, py, vy), got {len(q)}")
         for ename, es in spec.estimators.items():
@@ -236,10 +243,14 @@ def reference_problems(spec: Scenario, where: str) -> list[Problem]:
                 if s not in m.sensors:
                     out.append(f"key 'estimators.{ename}.sensors': {s!r} is not among "
                                f"model.sensors ({', '.join(m.sensors)})")
-    n = spec.run.duration / spec.run.step
-    if abs(n - round(n)) > 1e-9 * max(1.0, n):
-        out.insert(0, f"key 'run.duration': must be a whole number of steps of "
-                   f"{spec.run.step:g} s (got {spec.run.duration:g})")
+    if spec.run.step is not None and spec.run.duration is not None:
+        n = spec.run.duration / spec.run.step
+        if abs(n - round(n)) > 1e-9 * max(1.0, n):
+            out.insert(0, f"key 'run.duration': must be a whole number of steps of "
+                       f"{spec.run.step:g} s (got {spec.run.duration:g})")
+    if spec.replay is not None:
+        out += replay_problems(spec, where)
+    out += geo_problems(spec, where)
     return [Problem(f"{where}: {msg}") for msg in out]
 
 
@@ -266,8 +277,9 @@ def validate_data(data: dict, where: str) -> tuple[Scenario | None, list[Problem
     """Validate scenario data (after overrides): the spec (None if the schema refuses it) and
     every problem found."""
     problems = estimator_problems(data, where)
+    root = scenario_model(data)
     try:
-        spec = Scenario.model_validate(data)
+        spec = root.model_validate(data)
     except ValidationError as exc:
-        return None, schema_problems(exc, where) + problems
+        return None, schema_problems(exc, where, root) + problems
     return spec, problems + reference_problems(spec, where)

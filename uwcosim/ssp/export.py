@@ -100,6 +100,9 @@ def export_ssp(loaded: LoadedScenario, out: str | Path,
     spec = loaded.spec
     out = Path(out)
     where = str(loaded.path)
+    if spec.replay is not None:
+        raise ScenarioError(f"{where}: key 'replay': a replay scenario has no FMU system to "
+                            f"export")
     notes: list[str] = []
     for key in ("controls", "noise", "sensors", "estimators"):
         if getattr(spec, key):

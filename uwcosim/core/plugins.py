@@ -81,7 +81,8 @@ class Origin:
         where = self.module_file or self.target
         if self.source == "entry point":
             return f"entry point {self.group} ({pkg + ', ' if pkg else ''}{self.target})"
-        return f"{self.source} ({where}{', ' + pkg if pkg else ''})"
+        how = {"path": "by path", "registered": "registered by"}.get(self.source, self.source)
+        return f"{how} {where}{' (' + pkg + ')' if pkg else ''}"
 
 
 def file_sha256(path: str | Path | None) -> str | None:

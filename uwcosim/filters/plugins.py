@@ -52,17 +52,18 @@ _RESOLVED: dict[str, tuple[type, Origin]] = {}
 def interface_problem(obj: object) -> str:
     """Why ``obj`` cannot be an estimator class (empty string if it can)."""
     if not isinstance(obj, type):
-        return f"is a {type(obj).__name__}, not a class"
+        return f"it is not a class (an object of type {type(obj).__name__})"
     missing = [m for m in ("predict", "update") if not callable(getattr(obj, m, None))]
     if missing:
-        return (f"has no {' and no '.join(missing)} method (an estimator implements "
+        return (f"it has no {' and no '.join(missing)} method (an estimator implements "
                 f"predict(u, dt) and update(z, mask); derive from uwcosim.filters.Estimator)")
     settings = getattr(obj, "Settings", FilterSettings)
     if not (isinstance(settings, type) and issubclass(settings, FilterSettings)):
-        return ("declares Settings that is not a uwcosim.filters.FilterSettings subclass "
-                "(declare 'class Settings(FilterSettings)' on the class)")
+        return ("its Settings is not a uwcosim.filters.FilterSettings subclass (declare "
+                "'class Settings(FilterSettings)' on the class)")
     if issubclass(obj, Estimator) and getattr(obj, "__abstractmethods__", None):
-        return f"is abstract (does not implement {', '.join(sorted(obj.__abstractmethods__))})"
+        return (f"it is abstract (does not implement "
+                f"{', '.join(sorted(obj.__abstractmethods__))})")
     return ""
 
 
@@ -93,7 +94,7 @@ def resolve_estimator(kind: str, search: Sequence[str | Path] = ()) -> type:
         raise _unknown(kind)
     why = interface_problem(obj)
     if why:
-        raise ScenarioError(f"estimator type {kind!r}: {origin.target or kind} {why}")
+        raise ScenarioError(f"estimator type {kind!r}: {why}")
     if "kind" not in vars(obj):  # its own name in its messages (not its base class's)
         obj.kind = kind
     _RESOLVED[kind] = (obj, origin)

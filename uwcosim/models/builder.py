@@ -97,7 +97,7 @@ class ModelContext:
 
 def builder_problem(obj: object) -> str:
     """Why ``obj`` cannot be a model builder (empty string if it can)."""
-    return "" if callable(obj) else f"is a {type(obj).__name__}, not a callable"
+    return "" if callable(obj) else f"it is not callable (an object of type {type(obj).__name__})"
 
 
 def model_types() -> dict[str, str]:
@@ -124,7 +124,7 @@ def resolve_builder(kind: str, search: Sequence[str | Path] = ()) -> Callable:
                             f"the built-in models are chosen with 'kind')")
     why = builder_problem(obj)
     if why:
-        raise ScenarioError(f"model type {kind!r}: {origin.target or kind} {why}")
+        raise ScenarioError(f"model type {kind!r}: {why}")
     _RESOLVED[kind] = (obj, origin)
     return obj
 

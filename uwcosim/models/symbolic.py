@@ -203,7 +203,9 @@ class SymbolicModel:
         self.R = _covariance(R, self.nz, "R")
         if self.nz and np.linalg.eigvalsh(self.R)[0] <= 0:
             raise ValueError("R: not positive definite (a measurement needs some noise)")
-        self.ode, self.q_psd, self.substeps = ode, q_psd, int(substeps)
+        self.ode, self.substeps = ode, int(substeps)
+        if q_psd is not None:  # the continuous form's noise PSDs (a discrete model has none)
+            self.q_psd = np.asarray(q_psd, dtype=float)
         self.control_psd = None if control_psd is None else \
             np.asarray(control_psd, dtype=float).reshape(self.nu)
         x, u, w, dt = (ca.MX.sym(n, m) for n, m in
@@ -218,31 +220,31 @@ class SymbolicModel:
             Q = Q + Ju @ ca.diag(ca.DM(self.control_psd) / dt) @ Ju.T
         Q = 0.5 * (Q + Q.T)
         x_next = ca.substitute(xf, w, w0)
-        self._f = _expanded(ca.Function("f", [x, u, dt], [x_next]))
-        self._FQ = _expanded(ca.Function("FQ", [x, u, dt], [F, Q]))
-        self._FG = _expanded(ca.Function("FG", [x, u, dt], [F, G]))
-        self._h = _expanded(h)
+        self._f_fn = _expanded(ca.Function("f", [x, u, dt], [x_next]))
+        self._fq_fn = _expanded(ca.Function("FQ", [x, u, dt], [F, Q]))
+        self._fg_fn = _expanded(ca.Function("FG", [x, u, dt], [F, G]))
+        self._h_fn = _expanded(h)
         xs = ca.MX.sym("x", self.nx)
         Hx = ca.jacobian(h(xs), xs)
-        self._H = _expanded(ca.Function("H", [xs], [Hx]))
+        self._H_fn = _expanded(ca.Function("H", [xs], [Hx]))
         #: ``F`` and ``H`` do not depend on the state (the ``kf`` accepts the model)
-        self.linear = not (_depends(self._FQ, 0, 0) or _depends(self._H, 0, 0))
+        self.linear = not (_depends(self._fq_fn, 0, 0) or _depends(self._H_fn, 0, 0))
         #: ``Q`` depends on the state (the particle filters then factor it at each step)
-        self.Q_depends_on_x = _depends(self._FQ, 1, 0)
-        self._f_maps: dict[int, ca.Function] = {}
-        self._h_maps: dict[int, ca.Function] = {}
+        self.Q_depends_on_x = _depends(self._fq_fn, 1, 0)
+        self._fmaps: dict[int, ca.Function] = {}
+        self._hmaps: dict[int, ca.Function] = {}
         self._step, self._noise_cov, self._h_user = step, noise_cov, h
 
     # single-point evaluations -------------------------------------------------------------
     def f(self, x, u, dt: float) -> np.ndarray:
-        return np.asarray(self._f(x, u, dt)).reshape(self.nx)
+        return np.asarray(self._f_fn(x, u, dt)).reshape(self.nx)
 
     def FQ(self, x, u, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        F, Q = self._FQ(x, u, dt)
+        F, Q = self._fq_fn(x, u, dt)
         return np.asarray(F).reshape(self.nx, self.nx), np.asarray(Q).reshape(self.nx, self.nx)
 
     def FG(self, x, u, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        F, G = self._FG(x, u, dt)
+        F, G = self._fg_fn(x, u, dt)
         return np.asarray(F).reshape(self.nx, self.nx), np.asarray(G).reshape(self.nx, self.nw)
 
     def F(self, x, u, dt: float) -> np.ndarray:
@@ -252,24 +254,24 @@ class SymbolicModel:
         return self.FQ(x, u, dt)[1]
 
     def h(self, x) -> np.ndarray:
-        return np.asarray(self._h(x)).reshape(self.nz)
+        return np.asarray(self._h_fn(x)).reshape(self.nz)
 
     def H(self, x) -> np.ndarray:
-        return np.asarray(self._H(x)).reshape(self.nz, self.nx)
+        return np.asarray(self._H_fn(x)).reshape(self.nz, self.nx)
 
     # batch evaluations (rows are points) -----------------------------------------------------
     def f_batch(self, X: np.ndarray, u, dt: float) -> np.ndarray:
         n = X.shape[0]
-        fm = self._f_maps.get(n)
+        fm = self._fmaps.get(n)
         if fm is None:
-            fm = self._f_maps[n] = self._f.map(n)
+            fm = self._fmaps[n] = self._f_fn.map(n)
         return np.asarray(fm(X.T, u, dt)).T
 
     def h_batch(self, X: np.ndarray) -> np.ndarray:
         n = X.shape[0]
-        hm = self._h_maps.get(n)
+        hm = self._hmaps.get(n)
         if hm is None:
-            hm = self._h_maps[n] = self._h.map(n)
+            hm = self._hmaps[n] = self._h_fn.map(n)
         return np.asarray(hm(X.T)).reshape(self.nz, n).T
 
     # the CasADi form the grid filters analyse --------------------------------------------
@@ -279,7 +281,7 @@ class SymbolicModel:
         noise PSDs, measurements and RK4 step; what the projection and point-mass filters
         analyse); the model itself otherwise (a discrete model, or an ODE that calls the
         terrain B-spline, has no such form)."""
-        if self.ode is None or self.q_psd is None:
+        if self.ode is None or getattr(self, "q_psd", None) is None:
             return self
         try:
             return CasadiModel(self.ode, self._h_user, self.q_psd, self.R, self.state_names,

@@ -427,3 +427,14 @@ def test_from_casadi_errors_are_one_line(kwargs, expected):
     with pytest.raises(ValueError) as info:
         from_casadi(**args)
     assert expected in str(info.value) and "\n" not in str(info.value), str(info.value)
+
+
+def test_rbpf_says_which_structure_it_needs():
+    x, y = ca.SX.sym("x"), ca.SX.sym("y")
+    m = from_casadi(states=[x, y], f=[0, 0], h=[ca.sqrt(x**2 + y**2), ca.atan2(y, x)],
+                    Q=[1, 1], R=[1, 0.01])
+    with pytest.raises(ValueError, match=r"^rbpf: the model has no linear-Gaussian sub-state "
+                       r"\(states with linear dynamics of their own, measured only by linear "
+                       r"rows\); name them in linear_states, or use 'pf'$"):
+        build("rbpf", m, np.array([10.0, 1.0]), np.eye(2), {"n_particles": 10},
+              rng=np.random.default_rng(0))

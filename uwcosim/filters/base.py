@@ -13,8 +13,10 @@ code, numpy in and numpy out)::
 A filter declares its settings once, on its class (``Settings``, a
 :class:`~uwcosim.filters.settings.FilterSettings`); the constructor takes them as keywords,
 validates them and keeps them as ``self.settings``. Scenarios name filters through
-:data:`ESTIMATORS` (:func:`register`); :func:`build` makes one from validated settings and
-:meth:`Estimator.from_settings` from raw ones, with one-line errors.
+:data:`ESTIMATORS` (:func:`register`; a user's class named ``package.module:ClassName`` or by an
+entry point is found through the registry's fallback, :mod:`uwcosim.filters.plugins`);
+:func:`build` makes one from validated settings and :meth:`Estimator.from_settings` from raw
+ones, with one-line errors.
 
 :class:`FilterBase` holds what every filter of the package shares: the ``measurements`` setting
 (the subset of measurement names a filter uses), per-step diagnostics (reset when a step begins,

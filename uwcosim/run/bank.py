@@ -333,13 +333,13 @@ class _BadShape(Exception):
     """An estimator's ``x`` or ``P`` has the wrong shape after a step."""
 
 
-def _nis(est) -> float:
+def _nis(est: Estimator) -> float:
     """The NIS of the estimator's last step (NaN when it has none or no ``diagnostics``)."""
     diagnostics = getattr(est, "diagnostics", None)
     return diagnostics.get("nis", np.nan) if diagnostics is not None else np.nan
 
 
-def shape_problem(est, nx: int) -> str:
+def shape_problem(est: Estimator, nx: int) -> str:
     """What is wrong with the shapes of ``est.x`` (``(nx,)``) and ``est.P`` (``(nx, nx)``),
     or an empty string."""
     out = []

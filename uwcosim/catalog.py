@@ -1,7 +1,12 @@
-"""``uwcosim list estimators|scenarios|fmus``: what is available, from the registries.
+"""``uwcosim list estimators|models|scenarios|fmus``: what is available, from the registries.
 
-- estimators: every registered filter, the first line of its docstring and its settings (its
-  settings model, :mod:`uwcosim.filters.settings`): name, type, default and description;
+- estimators: every filter with where it comes from (built-in; an entry point of
+  ``uwcosim.estimators`` with its distribution and version; a scenario's
+  ``package.module:ClassName``, with ``--scenario``; one a user's module registered), the first
+  line of its docstring and its settings (its settings model, :mod:`uwcosim.filters.settings`):
+  name, type, default and description;
+- models: the built-in filter models (``[model] kind``) and the installed builders (entry
+  points of ``uwcosim.models``, ``[model] type``);
 - scenarios: the shipped scenarios (:func:`uwcosim.core.paths.scenarios_dir`), name and
   description;
 - fmus: the project's FMU models, their description, and the built archives found in ``fmus/``
@@ -17,11 +22,14 @@ from typing import Annotated, Literal, Union, get_args, get_origin
 
 from pydantic_core import PydanticUndefined
 
+from uwcosim.core.errors import ScenarioError
 from uwcosim.core.paths import cache_dir, project_root, scenarios_dir
-from uwcosim.filters import ESTIMATORS
 from uwcosim.filters.base import settings_model
+from uwcosim.filters.plugins import estimator_names, estimator_origin, resolve_estimator
 from uwcosim.fmu.build import FMI_VERSIONS, archive_name
 from uwcosim.fmu.specs import MODELS
+from uwcosim.models.builder import model_types
+from uwcosim.scenario.json_schema import scenario_estimator_types
 
 
 def _first_line(doc: str | None) -> str:
@@ -50,11 +58,20 @@ def estimator_settings(kind: str) -> list[tuple[str, str, object, str]]:
             for n, f in model.model_fields.items()]
 
 
-def list_estimators() -> str:
+def list_estimators(scenario: str | Path | None = None) -> str:
+    """Every filter (with ``scenario``: also its ``package.module:ClassName`` types), where it
+    comes from, and its settings. An installed entry point that fails to load is listed with
+    its error."""
+    extra = scenario_estimator_types(scenario) if scenario is not None else []
     lines = []
-    for name in ESTIMATORS.names():
-        cls = ESTIMATORS.get(name)
-        lines.append(f"{name}: {_first_line(cls.__doc__)}")
+    for name in dict.fromkeys([*estimator_names(), *extra]):
+        try:
+            cls = resolve_estimator(name)
+            origin = estimator_origin(name).label()
+        except ScenarioError as exc:
+            lines.append(f"{name}: cannot be loaded: {exc}")
+            continue
+        lines.append(f"{name}: {_first_line(cls.__doc__)} [{origin}]")
         settings = estimator_settings(name)
         if not settings:
             lines.append("    settings: none")
@@ -62,6 +79,11 @@ def list_estimators() -> str:
             value = "required" if default == "required" else f"={default!r}"
             lines.append(f"    {setting}{value} ({typ}): {doc}")
     return "\n".join(lines)
+
+
+def list_models() -> str:
+    """The built-in filter models and the installed model builders."""
+    return "\n".join(f"{name}: {what}" for name, what in model_types().items())
 
 
 def list_scenarios(directory: Path | None = None) -> str:

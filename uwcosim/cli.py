@@ -3,7 +3,8 @@
 ``uwcosim run SCENARIO [--seed N] [--out DIR] [--set key=value ...]``,
 ``uwcosim check SCENARIO [--set key=value ...]``, ``uwcosim schema [--out FILE]``,
 ``uwcosim report RUN``,
-``uwcosim export RUN --csv|--mat``, ``uwcosim list estimators|scenarios|fmus``, ``uwcosim demo``,
+``uwcosim export RUN --csv|--mat``, ``uwcosim list estimators|models|scenarios|fmus``,
+``uwcosim demo``,
 ``uwcosim fmu build|info|validate|check ...``, ``uwcosim regress RUN BASELINE``,
 ``uwcosim baseline update|check``, ``uwcosim campaign SPEC``, ``uwcosim verify example1``,
 ``uwcosim ssp export SCENARIO [--out FILE] [--ssp-version 1.0|2.0]``,
@@ -79,9 +80,10 @@ def _cmd_check(args) -> int:
 
 
 def _cmd_schema(args) -> int:
-    from uwcosim.scenario.json_schema import scenario_json_schema_text
+    from uwcosim.scenario.json_schema import scenario_estimator_types, scenario_json_schema_text
 
-    text = scenario_json_schema_text()
+    extra = scenario_estimator_types(args.scenario) if args.scenario else []
+    text = scenario_json_schema_text(extra)
     if args.out is None:
         print(text, end="")
         return 0
@@ -111,7 +113,12 @@ def _cmd_export(args) -> int:
 def _cmd_list(args) -> int:
     from uwcosim import catalog
 
-    print({"estimators": catalog.list_estimators, "scenarios": catalog.list_scenarios,
+    if args.scenario and args.what != "estimators":
+        raise UwcosimError("--scenario: only with 'uwcosim list estimators'")
+    if args.what == "estimators":
+        print(catalog.list_estimators(args.scenario))
+        return 0
+    print({"models": catalog.list_models, "scenarios": catalog.list_scenarios,
            "fmus": catalog.list_fmus}[args.what]())
     return 0
 
@@ -131,9 +138,12 @@ def _cmd_report(args) -> int:
 
 
 def _cmd_fmu_build(args) -> int:
-    from uwcosim.fmu.build import build_fmus
+    from uwcosim.fmu.build import build_fmus, register_specs
 
-    for p in build_fmus(args.out, names=args.names or None, force=args.force):
+    names = list(args.names or [])
+    if args.spec:
+        names += register_specs(args.spec)
+    for p in build_fmus(args.out, names=names or None, force=args.force):
         print(p)
     return 0
 
@@ -311,6 +321,9 @@ def build_parser() -> argparse.ArgumentParser:
     sc = sub.add_parser("schema", help="print the JSON Schema of the scenario format (for "
                         "editors: '#:schema ./scenario.schema.json' in a TOML file)")
     sc.add_argument("--out", default=None, help="write to this file (default: standard output)")
+    sc.add_argument("--scenario", default=None, metavar="SCENARIO",
+                    help="also give the filters of yours this scenario names by "
+                    "'package.module:ClassName' their own variants (settings, types)")
     sc.set_defaults(func=_cmd_schema)
 
     rp = sub.add_parser("report", help="rebuild the figures and report.md of an existing run "
@@ -333,9 +346,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output file (default: the log's path with .csv or .mat)")
     e.set_defaults(func=_cmd_export)
 
-    ls = sub.add_parser("list", help="list estimators (with settings and defaults), the shipped "
-                        "scenarios or the project's FMUs")
-    ls.add_argument("what", choices=["estimators", "scenarios", "fmus"], help="what to list")
+    ls = sub.add_parser("list", help="list estimators (where each comes from, settings and "
+                        "defaults), filter models, the shipped scenarios or the project's FMUs")
+    ls.add_argument("what", choices=["estimators", "models", "scenarios", "fmus"],
+                    help="what to list")
+    ls.add_argument("--scenario", default=None, metavar="SCENARIO",
+                    help="estimators: also the filters of yours this scenario names by "
+                    "'package.module:ClassName'")
     ls.set_defaults(func=_cmd_list)
 
     d = sub.add_parser("demo", help="build the FMUs into the user cache folder "
@@ -352,6 +369,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "see 'uwcosim list fmus'")
     b.add_argument("--out", default="fmus", help="output folder")
     b.add_argument("--force", action="store_true", help="rebuild even if up to date")
+    b.add_argument("--spec", action="append", metavar="MODULE:NAME",
+                   help="also build your own models through the same tooling: "
+                   "'package.module:NAME' (imported from the current folder) is a "
+                   "uwcosim.fmu.specs.ModelSpec, a list of them or a function returning either; "
+                   "with --spec, only those are built unless names are given too")
     b.set_defaults(func=_cmd_fmu_build)
     i = fs.add_parser("info", help="variables and capabilities of an FMU")
     i.add_argument("fmu", help="FMU archive (.fmu)")

@@ -12,6 +12,7 @@ and SIGHUP (the campaign process decides); an interrupted campaign kills them.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import shutil
 import sys
@@ -117,9 +118,11 @@ def _kept_failed(error: str, tmp: str | None, task: Task) -> str:
 
 
 def _worker_init(parent: int) -> None:
-    """Pool worker: die with the campaign, leave signals to it."""
+    """Pool worker: die with the campaign, leave signals to it; an estimator stopped in a run
+    is in its record, not a line on the campaign's terminal."""
     import signal
 
+    logging.getLogger("uwcosim.run.bank").addHandler(logging.NullHandler())
 
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(s, signal.SIG_IGN)

@@ -2,6 +2,11 @@
 
 What a registered factory takes (a filter's settings, for instance) is declared on the
 factory itself (:mod:`uwcosim.filters.settings`), not here.
+
+A registry may have a ``fallback``: a function that finds a name the registry does not hold
+(a user's filter named ``package.module:Name`` or by an entry point:
+:mod:`uwcosim.filters.plugins` installs it on :data:`uwcosim.filters.base.ESTIMATORS`), raising
+the one-line error itself. ``in`` and :meth:`Registry.names` count the registered names only.
 """
 
 from __future__ import annotations
@@ -20,6 +25,8 @@ class Registry(Generic[T]):
     def __init__(self, kind: str) -> None:
         self.kind = kind
         self._items: dict[str, T] = {}
+        #: finds a name that is not registered (or raises ScenarioError); None: no fallback
+        self.fallback: Callable[[str], T] | None = None
 
     def register(self, name: str) -> Callable[[T], T]:
         def deco(obj: T) -> T:
@@ -37,6 +44,11 @@ class Registry(Generic[T]):
         try:
             return self._items[name]
         except KeyError:
+            if self.fallback is not None:
+                try:
+                    return self.fallback(name)
+                except ScenarioError as exc:
+                    raise ScenarioError(f"{where}: {exc}" if where else str(exc)) from None
             valid = ", ".join(sorted(self._items))
             prefix = f"{where}: " if where else ""
             raise ScenarioError(

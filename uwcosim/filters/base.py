@@ -13,8 +13,10 @@ code, numpy in and numpy out)::
 A filter declares its settings once, on its class (``Settings``, a
 :class:`~uwcosim.filters.settings.FilterSettings`); the constructor takes them as keywords,
 validates them and keeps them as ``self.settings``. Scenarios name filters through
-:data:`ESTIMATORS` (:func:`register`); :func:`build` makes one from validated settings and
-:meth:`Estimator.from_settings` from raw ones, with one-line errors.
+:data:`ESTIMATORS` (:func:`register`; a user's class named ``package.module:ClassName`` or by an
+entry point is found through the registry's fallback, :mod:`uwcosim.filters.plugins`);
+:func:`build` makes one from validated settings and :meth:`Estimator.from_settings` from raw
+ones, with one-line errors.
 
 :class:`FilterBase` holds what every filter of the package shares: the ``measurements`` setting
 (the subset of measurement names a filter uses), per-step diagnostics (reset when a step begins,
@@ -128,17 +130,23 @@ def register(name: str):
 
 
 def settings_model(kind: str) -> type[FilterSettings]:
-    """The settings model of the registered filter ``kind``."""
-    return ESTIMATORS.get(kind).Settings
+    """The settings model of filter ``kind`` (registered, or a user's filter that
+    :mod:`uwcosim.filters.plugins` resolves: none declared is no setting)."""
+    return getattr(ESTIMATORS.get(kind), "Settings", FilterSettings)
 
 
 def build(kind: str, model: StateSpaceModel, x0: np.ndarray, P0: np.ndarray,
           settings: dict[str, Any], rng: np.random.Generator | None = None) -> Estimator:
     """Construct filter ``kind`` from settings already validated against its ``Settings``
     (only the keys the scenario gives: the others take their declared defaults); ``rng``
-    goes to a filter that draws."""
+    goes to a filter that draws. A user's class that does not derive from :class:`Estimator`
+    is called ``cls(model, x0, P0, **settings)``, with ``rng=`` only if it ``needs_rng``."""
     cls = ESTIMATORS.get(kind)
-    return cls(model, x0, P0, rng=rng if cls.needs_rng else None, **settings)
+    if isinstance(cls, type) and issubclass(cls, Estimator):
+        return cls(model, x0, P0, rng=rng if cls.needs_rng else None, **settings)
+    if getattr(cls, "needs_rng", False):
+        settings = {**settings, "rng": rng}
+    return cls(model, x0, P0, **settings)
 
 
 def select(z: np.ndarray | None, mask: np.ndarray | None, nz: int) -> np.ndarray | None:

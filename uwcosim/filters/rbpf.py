@@ -144,6 +144,10 @@ class RaoBlackwellizedPF(ParticleCloud):
         ip, ik = self.ip, self.ik
         if not ip:
             raise ValueError("rbpf: every state is linear-Gaussian; use the Kalman filter 'kf'")
+        if not ik and linear_states is None:
+            raise ValueError("rbpf: the model has no linear-Gaussian sub-state (states with "
+                             "linear dynamics of their own, measured only by linear rows); "
+                             "name them in linear_states, or use 'pf'")
         # measurement rows: on the linear states only (affine, constant) or on particle states
         H0 = m.H(self.x)
         self.rows_k = [r for r in range(m.nz) if not np.any(H0[r, ip])]

@@ -9,9 +9,11 @@ types are strict) and keeps them as ``self.settings``; the scenario loader valid
 ``uwcosim list estimators`` shows it and ``uwcosim schema`` exports it. The master's random
 stream (``rng``) is not a setting: a filter that draws says ``needs_rng = True`` on its class.
 
-A filter of one's own declares its settings the same way::
+A filter of one's own declares its settings the same way (named in a scenario by import path,
+``type = "mypkg.filters:GatedEKF"``, or by an entry point of ``uwcosim.estimators``:
+:mod:`uwcosim.filters.plugins`, ``docs/your_own_filter.md``; ``@register`` is for a name in
+this process)::
 
-    @register("gated_ekf")
     class GatedEKF(ExtendedKalmanFilter):
         class Settings(FilterSettings):
             gate: float = Field(5.0, gt=0, description="gate in standard deviations")

@@ -11,6 +11,11 @@ Naming scheme (``out_dir`` defaults to ``fmus/``; :func:`uwcosim.core.paths.fmu_
 - ``<Model>.fmu``       FMI 3.0 (the default FMUs used by scenarios)
 - ``<Model>_fmi2.fmu``  FMI 2.0
 
+A user's models go through the same tooling: :func:`register_specs` imports
+``package.module:NAME`` (a :class:`~uwcosim.fmu.specs.ModelSpec`, a list of them, or a function
+returning either; the current folder in front of ``sys.path`` for the import) and adds them to
+the models of this process (``uwcosim fmu build --spec current_nav.fmus:specs``).
+
 Builds are incremental: a SHA-256 over the generated C code, the templates, the XML, the
 compiler flags and the resources is stored in the archive (``extra/uwcosim/build.json``) and
 an archive whose hash is unchanged (and which has a binary for this platform) is skipped. The
@@ -36,11 +41,12 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
-from uwcosim.core.errors import FMUError
+from uwcosim.core.errors import FMUError, ScenarioError
 from uwcosim.core.paths import fmu_file_name
+from uwcosim.core.plugins import describe_error, import_object
 from uwcosim.fmu.codegen import GUID_PLACEHOLDER, config_header, equations_c
 from uwcosim.fmu.model_description import generation_tool, model_description
-from uwcosim.fmu.specs import DEFAULT_MAP_FILE, DEFAULT_MAP_SEED, MODELS, get_spec
+from uwcosim.fmu.specs import DEFAULT_MAP_FILE, DEFAULT_MAP_SEED, MODELS, ModelSpec, get_spec
 from uwcosim.models.terrain import synthetic_bathymetry
 
 log = logging.getLogger(__name__)
@@ -69,6 +75,39 @@ def archive_name(model: str, fmi_version: str | int = "3.0") -> str:
     """File name of the FMU of ``model``: ``<Model>.fmu`` (FMI 3.0), ``<Model>_fmi2.fmu``
     (:func:`uwcosim.core.paths.fmu_file_name`)."""
     return fmu_file_name(model, normalize_version(fmi_version) == "3.0")
+
+
+def register_specs(type_strings: list[str] | tuple[str, ...],
+                   search: tuple[Path, ...] = ()) -> list[str]:
+    """Import each ``package.module:NAME`` (a ModelSpec, a list of them, or a function
+    returning either) and add its specs to the builder's models for this process; their
+    names. FMUError (one line) for an import error, something that is not a spec, or a name
+    the project's models already have."""
+    names = []
+    for text in type_strings:
+        try:
+            obj, _ = import_object(text, search or (Path.cwd(),))
+            found = obj() if callable(obj) and not isinstance(obj, ModelSpec) else obj
+        except ScenarioError as exc:
+            raise FMUError(f"--spec {exc}") from None
+        except Exception as exc:  # noqa: BLE001 - the user's function: its error in one line
+            raise FMUError(f"--spec {text!r}: {describe_error(exc)}") from None
+        found = [found] if isinstance(found, ModelSpec) else found
+        if not isinstance(found, list | tuple) or not found \
+                or not all(isinstance(s, ModelSpec) for s in found):
+            raise FMUError(f"--spec {text!r}: expected a uwcosim.fmu.specs.ModelSpec, a list "
+                           f"of them or a function returning either")
+        for spec in found:
+            if spec.name in _PROJECT_MODELS:
+                raise FMUError(f"--spec {text!r}: model name {spec.name!r} is one of the "
+                               f"project's FMUs (rename it)")
+
+            def factory(spec: ModelSpec = spec) -> ModelSpec:
+                return spec
+
+            MODELS[spec.name] = factory
+            names.append(spec.name)
+    return names
 
 
 def targets(names: list[str] | tuple[str, ...] | None = None) -> list[tuple[str, str]]:
@@ -122,6 +161,8 @@ def default_map_bytes() -> bytes:
 
 
 _RESOURCES = {DEFAULT_MAP_FILE: default_map_bytes}
+#: the project's own models (a user's spec may not take their names)
+_PROJECT_MODELS = frozenset(MODELS)
 
 
 @dataclass

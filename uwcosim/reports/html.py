@@ -16,7 +16,7 @@ import numpy as np
 
 from uwcosim.models.states import position_velocity_indices
 from uwcosim.plots.html import band, esc, num, page, plot, png, table, thin
-from uwcosim.reports.reproduce import reproduce_command
+from uwcosim.reports.reproduce import reproduce_command, user_code_lines
 from uwcosim.reports.runfiles import RunFiles
 from uwcosim.runlog import columns
 
@@ -116,6 +116,8 @@ def run_html(run: RunFiles, figures: list[Path], path: Path) -> Path:
     body += ["<h2>Provenance</h2>",
              table(["package", "version"], sorted(meta.get("versions", {}).items())),
              table(["FMU", "sha256"], sorted(meta.get("fmus", {}).items())),
+             *([f"<p>User code: {'; '.join(esc(c) for c in user_code_lines(meta))}</p>"]
+               if meta.get("user_code") else []),
              f"<p>Scenario sha256 (text and overrides): "
              f"<code>{esc(meta.get('scenario_sha256', '?'))}</code></p>",
              "<p>Overrides: " + (", ".join(f"<code>{esc(o)}</code>"

@@ -16,7 +16,7 @@ from uwcosim.models.states import position_velocity_indices
 from uwcosim.plots.density_figures import draw_densities
 from uwcosim.plots.run_figures import error_figure, error_norm_figure, trajectory_figure
 from uwcosim.reports.html import run_html
-from uwcosim.reports.reproduce import reproduce_command
+from uwcosim.reports.reproduce import reproduce_command, user_code_lines
 from uwcosim.reports.runfiles import RunFiles, load_run
 from uwcosim.reports.signal_report import write_signal_report
 from uwcosim.reports.table import results_table
@@ -68,6 +68,9 @@ def markdown_report(run: RunFiles, figures: list[Path]) -> str:
         lines += ["", *(f"Note: {n}" for n in s["notes"])]
     lines += ["", "Reproduce (the same log, byte for byte):", "", "```sh",
               reproduce_command(s, run.meta, run.run_dir), "```", ""]
+    code = user_code_lines(run.meta)
+    if code:  # the same log needs the same code: the files' hashes say which
+        lines += ["User code of this run:", "", *(f"- {c}" for c in code), ""]
     if s.get("estimators"):
         lines.append(results_table(s))
     timing = s.get("timing", {})

@@ -28,7 +28,11 @@ control and measurement layout come from the run layer
 
 A diverging estimator (:mod:`uwcosim.run.divergence`: non-finite state,
 covariance not symmetric positive definite, negative NIS/NEES, position out of bounds) is
-flagged and stopped; the others go on.
+flagged and stopped; the others go on. So is one whose code fails: any exception raised in its
+``predict`` or ``update`` (a user's filter: its type, message, file and line), or an ``x`` /
+``P`` of the wrong shape after a step. Each stop is one warning line (logger
+``uwcosim.run.bank``) naming the estimator, the step and the time, and is kept in
+``simulation.json`` (``error``, ``stopped_step``); its log columns are NaN from that step on.
 
 The scenario was validated when it was loaded (:mod:`uwcosim.scenario.validate`: sensors,
 controls, filter types, policies and settings), so the bank trusts it.
@@ -36,6 +40,7 @@ controls, filter types, policies and settings), so the bank trusts it.
 
 from __future__ import annotations
 
+import logging
 import time
 from array import array
 from collections.abc import Callable, Collection, Sequence
@@ -45,6 +50,7 @@ import numpy as np
 
 from uwcosim.core.errors import FilterDivergence, ScenarioError
 from uwcosim.core.jit import interrupted
+from uwcosim.core.plugins import describe_error
 from uwcosim.core.rng import stream
 from uwcosim.filters import Estimator
 from uwcosim.filters.base import build
@@ -55,6 +61,8 @@ from uwcosim.run.divergence import DivergenceCheck
 from uwcosim.runlog.columns import EstimateBlock
 from uwcosim.scenario.schema import EstimationSpec, EstimatorSpec
 from uwcosim.scenario.validate import validated_settings
+
+log = logging.getLogger(__name__)
 
 #: where a bank's estimates of step ``k`` go: ``sink(k, values, diverged)``
 Sink = Callable[[int, np.ndarray, list[bool]], None]
@@ -112,6 +120,10 @@ class Track:
     nees: float = float("nan")
     diverged_at: float | None = None
     error: str = ""
+    #: the step at which it was stopped (None: it was not)
+    stopped_step: int | None = None
+    #: its filter type (for the stop's message)
+    type: str = ""
     step_times: array = field(default_factory=lambda: array("d"))  # 8 bytes per step
 
 
@@ -164,9 +176,17 @@ class EstimatorBank:
                 raise ScenarioError(f"{key}: {exc}") from None
             except MemoryError:
                 raise ScenarioError(f"{key}: not enough memory for these settings") from None
+            except ScenarioError:
+                raise
+            except Exception as exc:  # noqa: BLE001 - a user's constructor: one line
+                raise ScenarioError(f"{key}: constructing {plan.type!r} failed: "
+                                    f"{describe_error(exc)}") from None
+            why = shape_problem(est, model.nx)
+            if why:
+                raise ScenarioError(f"{key}: {plan.type!r} at the start: {why}")
             est.t = t0
             policy = POLICIES.get(plan.policy)(model.nz)
-            self.tracks.append(Track(plan.name, est, policy, plan.use))
+            self.tracks.append(Track(plan.name, est, policy, plan.use, type=plan.type))
 
     def _initial_mean(self, t0: float, x_true0: np.ndarray) -> np.ndarray:
         """The truth at the start time, with ``[estimation] initial_state`` for the states it
@@ -245,6 +265,7 @@ class EstimatorBank:
         done = np.zeros(len(active), dtype=np.intp)  # steps each estimator completed
         failed: dict[int, str] = {}  # estimator -> FilterDivergence at step done[a]
         base = [len(tr.step_times) for tr in active]
+        xshape, pshape = (n,), (n, n)
         for a, tr in enumerate(active):
             est = tr.estimator
             for j, st in enumerate(steps):
@@ -255,6 +276,12 @@ class EstimatorBank:
                     z_in, mask = tr.policy(st.t, st.z, st.received & tr.use)
                     mask = np.asarray(mask, dtype=bool) & tr.use
                     est.update(z_in if mask.any() else None, mask)
+                    try:
+                        shaped = est.x.shape == xshape and est.P.shape == pshape
+                    except AttributeError:  # not arrays: the slow check below words it
+                        shaped = False
+                    if not shaped and shape_problem(est, n):
+                        raise _BadShape(shape_problem(est, n))
                 except FilterDivergence as exc:
                     tr.step_times.append(time.perf_counter() - t0)
                     failed[a] = str(exc)
@@ -263,10 +290,18 @@ class EstimatorBank:
                     if interrupted(exc):
                         raise KeyboardInterrupt from None
                     raise
+                except _BadShape as exc:
+                    tr.step_times.append(time.perf_counter() - t0)
+                    failed[a] = str(exc)
+                    break
+                except Exception as exc:  # noqa: BLE001 - the estimator's code failed: stop it
+                    tr.step_times.append(time.perf_counter() - t0)
+                    failed[a] = describe_error(exc)
+                    break
                 tr.step_times.append(time.perf_counter() - t0)
                 X[a, j] = est.x
                 Ps[a, j] = est.P
-                nis[a, j] = est.diagnostics.get("nis", np.nan)
+                nis[a, j] = _nis(est)
                 done[a] = j + 1
         for j, st in enumerate(steps):
             live = []
@@ -276,7 +311,7 @@ class EstimatorBank:
                 if done[a] > j:
                     live.append(a)
                 elif a in failed:  # raised at this step
-                    tr.diverged_at, tr.error, tr.nees = st.t, failed.pop(a), float("nan")
+                    self._stop(tr, st, failed.pop(a))
             if live:
                 whys, nees = self.check.assess(X[live, j], Ps[live, j],
                                                st.truth - X[live, j], nis[live, j])
@@ -284,9 +319,16 @@ class EstimatorBank:
                     tr = active[a]
                     tr.nees = v
                     if why:  # diverged here: the steps it went on with are not its results
-                        tr.diverged_at, tr.error, tr.nees = st.t, why, float("nan")
+                        self._stop(tr, st, why)
                         del tr.step_times[base[a] + j + 1:]
             self._emit(st.k, *self._row(active, X[:, j], Ps[:, j], nis[:, j]))
+
+    @staticmethod
+    def _stop(tr: Track, st: _Step, why: str) -> None:
+        """Stop and flag ``tr`` at step ``st`` for ``why``, in one warning line."""
+        tr.diverged_at, tr.error, tr.nees, tr.stopped_step = st.t, why, float("nan"), st.k
+        log.warning("estimator %r (%s) stopped at step %d (t=%g s): %s; the other estimators "
+                    "and the log go on", tr.name, tr.type, st.k, st.t, why)
 
     def _row(self, active: list[Track], X, Ps, nis) -> tuple[np.ndarray, list[bool]]:
         """One step's log values of every estimator (its :class:`EstimateBlock`: ``x``,
@@ -308,5 +350,32 @@ class EstimatorBank:
         live = [tr for tr in self.tracks if tr.diverged_at is None]
         X = np.array([tr.estimator.x for tr in live], dtype=float)
         Ps = np.array([tr.estimator.P for tr in live], dtype=float)
-        nis = np.array([tr.estimator.diagnostics.get("nis", np.nan) for tr in live])
+        nis = np.array([_nis(tr.estimator) for tr in live])
         return self._row(live, X, Ps, nis)
+
+
+class _BadShape(Exception):
+    """An estimator's ``x`` or ``P`` has the wrong shape after a step."""
+
+
+def _nis(est: Estimator) -> float:
+    """The NIS of the estimator's last step (NaN when it has none or no ``diagnostics``)."""
+    diagnostics = getattr(est, "diagnostics", None)
+    return diagnostics.get("nis", np.nan) if diagnostics is not None else np.nan
+
+
+def shape_problem(est: Estimator, nx: int) -> str:
+    """What is wrong with the shapes of ``est.x`` (``(nx,)``) and ``est.P`` (``(nx, nx)``),
+    or an empty string."""
+    out = []
+    for attr, want in (("x", (nx,)), ("P", (nx, nx))):
+        try:
+            got = np.shape(getattr(est, attr))
+        except AttributeError:
+            out.append(f"it has no {attr}")
+            continue
+        except ValueError:  # a ragged sequence
+            got = "ragged"
+        if got != want:
+            out.append(f"{attr} has shape {got}, expected {want}")
+    return "; ".join(out)

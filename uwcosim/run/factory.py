@@ -10,8 +10,11 @@ the number of PSDs and the sensors the TAN model takes, a map for a depth sensor
 
 This is where the implementation is chosen, explicitly: ``kind = "tan"`` gives the closed-form
 numpy :class:`~uwcosim.models.tan.TANModel` (its CasADi form, from the same expressions as the
-FMUs, is ``model.symbolic``), ``kind = "cv"`` the :class:`~uwcosim.models.linear.LinearModel`.
-The filters use the model they are given and see it only through
+FMUs, is ``model.symbolic``), ``kind = "cv"`` the :class:`~uwcosim.models.linear.LinearModel`,
+and ``type`` a user's model: the builder it names (:mod:`uwcosim.models.builder`) is called
+with the scenario's :class:`~uwcosim.models.builder.ModelContext` (:func:`model_context`) and
+``[model.parameters]``, and what it returns is checked against the scenario (measurement names,
+states, controls). The filters use the model they are given and see it only through
 :class:`uwcosim.models.protocol.StateSpaceModel`.
 """
 
@@ -19,11 +22,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from uwcosim.core.errors import ScenarioError
+from uwcosim.core.plugins import describe_error
+from uwcosim.models.builder import ModelContext, model_problems, resolve_builder
 from uwcosim.models.linear import LinearModel, constant_velocity_model
+from uwcosim.models.protocol import StateSpaceModel
 from uwcosim.models.tan import TANModel, tan_model
 from uwcosim.models.terrain import Bathymetry, load_map, synthetic_bathymetry
 from uwcosim.scenario.loaded import LoadedScenario
 from uwcosim.scenario.schema import model_noise_psds
+from uwcosim.scenario.validate import search_dirs, state_problems
 
 
 def scenario_map(loaded: LoadedScenario) -> Bathymetry | None:
@@ -40,10 +48,13 @@ def scenario_map(loaded: LoadedScenario) -> Bathymetry | None:
     return synthetic_bathymetry(m.seed, m.extent, m.resolution, relief_std=m.relief_std)
 
 
-def build_model(loaded: LoadedScenario, bathymetry: Bathymetry | None) -> TANModel | LinearModel:
+def build_model(loaded: LoadedScenario,
+                bathymetry: Bathymetry | None) -> TANModel | LinearModel | StateSpaceModel:
     """The filters' model of a validated scenario (``[model]``)."""
     spec = loaded.spec
     m = spec.model
+    if m.type is not None:
+        return user_model(loaded, bathymetry)
     q, qc = model_noise_psds(spec)
     sensors = [spec.sensors[s] for s in m.sensors]
     names = tuple(o for s in sensors for o in s.outputs)
@@ -53,3 +64,45 @@ def build_model(loaded: LoadedScenario, bathymetry: Bathymetry | None) -> TANMod
                          bathymetry if depth else None, names, control_psd=qc)
     r = np.array([sg**2 for s in sensors for sg in s.sigma])
     return constant_velocity_model(q_psd=q, R=np.diag(r), measurement_names=names)
+
+
+def model_context(loaded: LoadedScenario, bathymetry: Bathymetry | None) -> ModelContext:
+    """What the builder of a user's model gets from the validated scenario."""
+    spec = loaded.spec
+    m = spec.model
+    q, qc = model_noise_psds(spec)
+    sensors = {s: tuple(spec.sensors[s].outputs) for s in m.sensors}
+    sigma = {o: float(sg) for s in m.sensors
+             for o, sg in zip(spec.sensors[s].outputs, spec.sensors[s].sigma, strict=True)}
+    return ModelContext(
+        measurement_names=tuple(o for outs in sensors.values() for o in outs), sigma=sigma,
+        q_psd=tuple(q), noise={n: tuple(nz.psd) for n, nz in spec.noise.items()},
+        control_psd=tuple(qc) if qc is not None else None, controls=tuple(m.controls),
+        truth=tuple(m.truth), sensors=sensors, step=spec.run.step, bathymetry=bathymetry,
+        scenario_dir=loaded.base_dir)
+
+
+def user_model(loaded: LoadedScenario, bathymetry: Bathymetry | None) -> StateSpaceModel:
+    """The model ``[model] type`` builds, checked against the scenario (ScenarioError, one
+    line naming the key: the builder's own error, its file and line, or what does not match)."""
+    spec, where = loaded.spec, str(loaded.path)
+    m = spec.model
+    key = f"{where}: key 'model.type'"
+    try:
+        builder = resolve_builder(m.type, search_dirs(where))
+    except ScenarioError as exc:
+        raise ScenarioError(f"{key}: {exc}") from None
+    context = model_context(loaded, bathymetry)
+    try:
+        model = builder(context, **m.parameters)
+    except Exception as exc:  # noqa: BLE001 - the user's builder: its error in one line
+        raise ScenarioError(f"{key}: building the model with {m.type!r} failed: "
+                            f"{describe_error(exc)}") from None
+    problems = [f"{key}: {p}" for p in model_problems(model, m.type, context)]
+    if not problems:
+        problems = [f"{where}: {p}" for p in state_problems(
+            spec, tuple(model.state_names), f"model {m.type!r}")]
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        raise ScenarioError(problems[0] + more)
+    return model

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from uwcosim.core.errors import UwcosimError
+from uwcosim.core.plugins import describe_error
 from uwcosim.filters.base import build
 from uwcosim.master.master import Master
 from uwcosim.run.factory import build_model, scenario_map
@@ -114,6 +115,9 @@ def check_filters(loaded: LoadedScenario) -> list[Problem]:
                   rng=np.random.default_rng(0))
         except (UwcosimError, ValueError, TypeError, MemoryError) as exc:
             out.append(Problem(f"{where}: key 'estimators.{name}': {exc}"))
+        except Exception as exc:  # noqa: BLE001 - a user's filter or model: its error, one line
+            out.append(Problem(f"{where}: key 'estimators.{name}': constructing {es.type!r} "
+                               f"failed: {describe_error(exc)}"))
     return out
 
 

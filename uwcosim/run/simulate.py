@@ -59,6 +59,7 @@ from uwcosim.run.density import DensitySnapshots
 from uwcosim.run.divergence import DivergenceCheck, default_bound
 from uwcosim.run.factory import build_model, scenario_map
 from uwcosim.run.geocolumns import GeoColumns
+from uwcosim.run.provenance import user_code
 from uwcosim.run.recorder import LogRecorder, logged_signals, pattern_problems
 from uwcosim.run.replay import ReplaySource, replay_source
 from uwcosim.runlog import RunLogger
@@ -168,6 +169,8 @@ def estimator_records(bank: EstimatorBank | None) -> dict[str, dict]:
              "total_time_s": float(times.sum())}
         if tr.error:
             m["error"] = tr.error
+        if tr.stopped_step is not None:
+            m["stopped_step"] = tr.stopped_step
         out[tr.name] = m
     return out
 
@@ -364,6 +367,9 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                             states=list(model.state_names),
                             measurements=list(master.sensors.names),
                             estimators={p.name: p.type for p in bank.plans})
+                code = user_code(spec)
+                if code:  # a user's filters and model: where they came from (run.provenance)
+                    meta["user_code"] = code
             if bathy is not None:
                 meta["map"] = MAP_FILE
             if master.variable_maps():  # third-party FMUs: roles, variables and conversions

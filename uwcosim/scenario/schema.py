@@ -12,7 +12,7 @@ checked against the FMUs' model descriptions by the master (``uwcosim check`` ru
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import (
     BaseModel,
@@ -148,7 +148,19 @@ class MapSpec(Strict):
 
 
 class ModelSpec(Strict):
-    kind: Literal["tan", "cv"] = "tan"
+    kind: Literal["tan", "cv"] = Field(
+        "tan", description="a built-in filter model: tan (seed 000 eq. 54-55) or cv "
+        "(constant velocity); not with 'type'")
+    #: a user's model: a builder ``package.module:build`` or an entry point of
+    #: ``uwcosim.models`` (:mod:`uwcosim.models.builder`), instead of ``kind``
+    type: Str | None = Field(
+        None, description="a model of yours instead of 'kind': 'package.module:build' "
+        "(imported with the scenario's folder and the current folder on sys.path) or an "
+        "entry point of group uwcosim.models; build(context, **parameters) returns a "
+        "StateSpaceModel (docs/your_own_model.md)")
+    #: keyword arguments of the builder of ``type``
+    parameters: dict[Str, Any] = Field(
+        {}, description="keyword arguments of the builder named by 'type'")
     truth: list[Str]
     controls: list[Str] = []
     sensors: list[Str]
@@ -159,6 +171,16 @@ class ModelSpec(Strict):
         None, description="name of the [noise.NAME] source on the vehicle's controls (psi, a) "
         "that the filters' Q includes, mapped through the step's Jacobian in the controls "
         "(tan model; default: none)")
+
+    @model_validator(mode="after")
+    def _kind_or_type(self) -> ModelSpec:
+        if self.type is not None and "kind" in self.model_fields_set:
+            raise ValueError("give 'kind' (a built-in model) or 'type' (a model of yours), "
+                             "not both")
+        if self.parameters and self.type is None:
+            raise ValueError("'parameters' are the keyword arguments of a model builder: "
+                             "they need 'type'")
+        return self
 
 
 def model_noise_psds(spec: Scenario) -> tuple[list[float], list[float] | None]:

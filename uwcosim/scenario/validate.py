@@ -21,14 +21,17 @@ from __future__ import annotations
 import dataclasses
 import re
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
 from uwcosim.core.errors import FMUError, ScenarioError, UwcosimError
-from uwcosim.filters import ESTIMATORS
 from uwcosim.filters.base import settings_model
+from uwcosim.filters.plugins import resolve_estimator
 from uwcosim.filters.policies import POLICIES
+from uwcosim.filters.settings import FilterSettings
+from uwcosim.models.builder import resolve_builder
 from uwcosim.models.states import MODEL_STATES
 from uwcosim.scenario import schema
 from uwcosim.scenario.geo import geo_problems
@@ -142,9 +145,18 @@ def format_validation_error(exc: ValidationError, where: str,
     return problems[0].message + more
 
 
+def search_dirs(where: str) -> tuple[Path, Path]:
+    """Where a user's module named ``package.module:Name`` in the scenario file ``where`` is
+    looked for (in front of ``sys.path`` for its import): the scenario's folder, then the
+    current folder."""
+    return Path(where).resolve().parent, Path.cwd()
+
+
 def estimator_problems(data: dict, where: str) -> list[Problem]:
-    """``[estimators.NAME]`` of the raw data: filter type, policy and the filter's settings
-    (the settings model of :mod:`uwcosim.filters.settings`)."""
+    """``[estimators.NAME]`` of the raw data: filter type (a registered filter, a user's class
+    ``package.module:ClassName`` imported with :func:`search_dirs`, or an entry point:
+    :mod:`uwcosim.filters.plugins`), policy and the filter's settings (the settings model
+    declared on its class, :mod:`uwcosim.filters.settings`)."""
     out: list[Problem] = []
     estimators = data.get("estimators")
     if not isinstance(estimators, dict):
@@ -160,11 +172,12 @@ def estimator_problems(data: dict, where: str) -> list[Problem]:
                                f"{policy!r} (valid: {', '.join(POLICIES.names())})"))
         if not isinstance(kind, str):
             continue
-        if kind not in ESTIMATORS:
-            out.append(Problem(f"{where}: key '{key}.type': unknown estimator {kind!r} "
-                               f"(valid: {', '.join(ESTIMATORS.names())})"))
+        try:
+            cls = resolve_estimator(kind, search_dirs(where))
+        except ScenarioError as exc:
+            out.append(Problem(f"{where}: key '{key}.type': {exc}"))
             continue
-        model = settings_model(kind)
+        model = getattr(cls, "Settings", FilterSettings)
         settings = {k: v for k, v in raw.items() if k not in common}
         try:
             model.model_validate(settings)
@@ -188,22 +201,13 @@ def reference_problems(spec: Scenario, where: str) -> list[Problem]:
         out.append("key 'model': required when estimators are given")
     m = spec.model
     if m is not None:
-        states = MODEL_STATES[m.kind]
-        per_state = f"one per state of the {m.kind} model ({', '.join(states)})"
-        if len(m.truth) != len(states):
-            out.append(f"key 'model.truth': {len(m.truth)} signals; expected {per_state}")
-        stds = [("estimation.initial_std", spec.estimation.initial_std if spec.estimation
-                 else None)]
-        stds += [(f"estimators.{n}.initial_std", es.initial_std)
-                 for n, es in spec.estimators.items()]
-        for key, std in stds:
-            if std is not None and len(std) != len(states):
-                out.append(f"key '{key}': {len(std)} values; expected {per_state}")
-        init = spec.estimation.initial_state if spec.estimation else None
-        for s in init or {}:
-            if s not in states:
-                out.append(f"key 'estimation.initial_state.{s}': not a state of the "
-                           f"{m.kind} model ({', '.join(states)})")
+        if m.type is None:
+            out += state_problems(spec, MODEL_STATES[m.kind], f"{m.kind} model")
+        else:  # the states are known once the model is built (uwcosim.run.factory)
+            try:
+                resolve_builder(m.type, search_dirs(where))
+            except ScenarioError as exc:
+                out.append(f"key 'model.type': {exc}")
         for c in m.controls if spec.replay is None else ():  # a replay's: replay_problems
             if c not in spec.controls:
                 out.append(f"key 'model.controls': unknown control {c!r} "
@@ -220,7 +224,7 @@ def reference_problems(spec: Scenario, where: str) -> list[Problem]:
                            f"output ({len(sen.outputs)})")
         q, _ = schema.model_noise_psds(spec)
         out += _control_noise_problems(spec)
-        if m.kind == "tan":
+        if m.type is None and m.kind == "tan":
             if len(q) != 4:
                 what = "model.q_psd" if m.q_psd is not None or spec.replay else "noise"
                 hint = ("; name the control-noise source in model.control_noise or give "
@@ -234,7 +238,7 @@ def reference_problems(spec: Scenario, where: str) -> list[Problem]:
                            f"sensor and optionally a 1-output depth sensor, got {shapes}")
             if len(m.sensors) == 2 and spec.map is None:
                 out.append("key 'map': a depth sensor needs a map")
-        if m.kind == "cv" and len(q) not in (1, 4):
+        if m.type is None and m.kind == "cv" and len(q) not in (1, 4):
             what = "model.q_psd" if m.q_psd is not None or spec.replay else "noise"
             out.append(f"key '{what}': the constant-velocity model needs 1 or 4 process-noise "
                        f"PSDs (px, vx, py, vy), got {len(q)}")
@@ -254,6 +258,30 @@ def reference_problems(spec: Scenario, where: str) -> list[Problem]:
     return [Problem(f"{where}: {msg}") for msg in out]
 
 
+def state_problems(spec: Scenario, states: tuple[str, ...] | list[str],
+                   label: str) -> list[str]:
+    """``model.truth`` and the ``initial_std`` s against the states of the filters' model
+    (``label``: e.g. ``tan model``): one signal and one value per state."""
+    out = []
+    per_state = f"one per state of the {label} ({', '.join(states)})"
+    m = spec.model
+    if len(m.truth) != len(states):
+        out.append(f"key 'model.truth': {len(m.truth)} signals; expected {per_state}")
+    stds = [("estimation.initial_std", spec.estimation.initial_std if spec.estimation
+             else None)]
+    stds += [(f"estimators.{n}.initial_std", es.initial_std)
+             for n, es in spec.estimators.items()]
+    for key, std in stds:
+        if std is not None and len(std) != len(states):
+            out.append(f"key '{key}': {len(std)} values; expected {per_state}")
+    init = spec.estimation.initial_state if spec.estimation else None
+    for s in init or {}:
+        if s not in states:
+            out.append(f"key 'estimation.initial_state.{s}': not a state of the {label} "
+                       f"({', '.join(states)})")
+    return out
+
+
 def _control_noise_problems(spec: Scenario) -> list[str]:
     """Problems of ``model.control_noise`` (the noise source on the controls)."""
     m = spec.model
@@ -261,6 +289,9 @@ def _control_noise_problems(spec: Scenario) -> list[str]:
     if name is None:
         return []
     key = "key 'model.control_noise'"
+    if m.type is not None:  # a user's model: its builder gets the PSDs (ModelContext)
+        return [] if name in spec.noise else [
+            f"{key}: unknown noise source {name!r} (noise: {', '.join(spec.noise) or 'none'})"]
     if m.kind != "tan":
         return [f"{key}: only the tan model has controls (model.kind is {m.kind!r})"]
     if name not in spec.noise:

@@ -360,13 +360,17 @@ def test_every_general_filter_runs_on_the_example_model(example_fmus, tmp_path):
 @pytest.mark.parametrize("scenario_override, kind, expected", [
     # the example: a structure the grid filters find, with too many gridded states
     (None, "pfm_psi", "4 gridded states ['x', 'y', 'cx', 'cy']; at most 3 are supported (set "
-     "'states' to the nonlinear ones)"),
+     "'states' to the nonlinear ones; a state is taken as a Kalman state only if its dynamics "
+     "are affine and independent of the gridded states and a linear measurement row observes "
+     "it)"),
     (None, "point_mass", "4 gridded states ['x', 'y', 'cx', 'cy']; at most 3 are supported"),
     # a discrete model and a numpy model have no CasADi ODE form
     ('model.type="byo_tan_models:discrete"', "pfm_psi", "the projection and point-mass "
-     "filters need the CasadiModel (its CasADi functions), not a numpy fast path"),
+     "filters need the CasadiModel (its CasADi functions), not a numpy fast path: a "
+     "continuous-time model with constant noise PSDs (a CasadiModel, "
+     "from_casadi(time='continuous'), or a model whose 'symbolic' is one)"),
     ('model.type="byo_tan_models:hand"', "point_mass", "the projection and point-mass filters "
-     "need the CasadiModel (its CasADi functions), not a numpy fast path"),
+     "need the CasadiModel (its CasADi functions), not a numpy fast path: a continuous-time"),
     ('model.type="byo_tan_models:hand"', "kf", "estimator 'kf' needs a linear model "
      "(model.linear); use 'ekf', 'ukf' or 'ckf'"),
 ])

@@ -120,7 +120,9 @@ class Partition:
             if not hasattr(model, attr):
                 raise ValueError(
                     "the projection and point-mass filters need the CasadiModel (its CasADi "
-                    "functions), not a numpy fast path"
+                    "functions), not a numpy fast path: a continuous-time model with constant "
+                    "noise PSDs (a CasadiModel, from_casadi(time='continuous'), or a model whose "
+                    "'symbolic' is one)"
                 )
         self.model = model
         use_kernel = ENABLED if compiled is None else (compiled and ENABLED)
@@ -197,7 +199,9 @@ class Partition:
         if len(p) > max_dim:
             raise ValueError(
                 f"{len(p)} gridded states {[model.state_names[i] for i in p]}; at most {max_dim} "
-                "are supported (set 'states' to the nonlinear ones)"
+                "are supported (set 'states' to the nonlinear ones; a state is taken as a "
+                "Kalman state only if its dynamics are affine and independent of the gridded "
+                "states and a linear measurement row observes it)"
             )
         self._validate(f, Jf, B, h_dep, h_lin, x)
         self._splits: dict[int, tuple[list[int], list[int]]] = {}

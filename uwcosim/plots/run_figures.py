@@ -33,14 +33,8 @@ import numpy as np  # noqa: E402
 
 from uwcosim.models.states import position_velocity_indices  # noqa: E402
 from uwcosim.plots.labels import display_name, plain_log_ticks  # noqa: E402
+from uwcosim.plots.track import map_window, position  # noqa: E402
 from uwcosim.runlog import columns  # noqa: E402
-
-
-def _position(cols: Columns, estimator: str, states: Names) -> tuple[np.ndarray, np.ndarray]:
-    """The position estimate ``(x, y)`` of ``estimator`` over the run."""
-    ix, iy = position_velocity_indices(states)[0]
-    return (cols[columns.estimate(estimator, states[ix])],
-            cols[columns.estimate(estimator, states[iy])])
 
 
 def _end_window(cols, truth_names, est_names, states):
@@ -56,7 +50,7 @@ def _end_window(cols, truth_names, est_names, states):
     with warnings.catch_warnings():  # a replay's sparse reference: no value at the end
         warnings.simplefilter("ignore", RuntimeWarning)
         worst = [np.nanmax(np.hypot(ex[k0:] - tx[k0:], ey[k0:] - ty[k0:]), initial=np.nan)
-                 for ex, ey in (_position(cols, e, states) for e in est_names)]
+                 for ex, ey in (position(cols, e, states) for e in est_names)]
     worst = np.array([w for w in worst if np.isfinite(w)])
     if not np.isfinite(tx[-1]) or not np.isfinite(ty[-1]):
         return None
@@ -78,19 +72,6 @@ def _sparse(v: np.ndarray) -> dict:
     return {"marker": ".", "ms": 4} if fin.any() and fin.mean() < 0.5 else {}
 
 
-def _extent(cols: Columns, truth_xy, est_names: Names, states: Names):
-    """``(xmin, xmax, ymin, ymax)`` of the truth, or of the estimates where it has no value."""
-    tx, ty = truth_xy
-    if not (np.isfinite(tx).any() and np.isfinite(ty).any()):
-        pts = [_position(cols, e, states) for e in est_names]
-        tx = np.concatenate([p[0] for p in pts]) if pts else np.zeros(1)
-        ty = np.concatenate([p[1] for p in pts]) if pts else np.zeros(1)
-    if not (np.isfinite(tx).any() and np.isfinite(ty).any()):
-        return 0.0, 1.0, 0.0, 1.0
-    return (float(np.nanmin(tx)), float(np.nanmax(tx)), float(np.nanmin(ty)),
-            float(np.nanmax(ty)))
-
-
 def trajectory_figure(cols: Columns, truth_names: Names, est_names: Names, states: Names,
                       bathy: Bathymetry | None, path: Path,
                       frame: LocalFrame | None = None) -> Path:
@@ -102,15 +83,7 @@ def trajectory_figure(cols: Columns, truth_names: Names, est_names: Names, state
     values at few steps (a replay's fixes) is drawn as points."""
     ix, iy = position_velocity_indices(states)[0]
     tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
-    ex0, ex1, ey0, ey1 = _extent(cols, (tx, ty), est_names, states)
-    pad = 1500.0 if bathy is not None else 0.1 * max(ex1 - ex0, ey1 - ey0, 10.0)
-    x0, x1 = ex0 - pad, ex1 + pad
-    y0, y1 = ey0 - pad, ey1 + pad
-    if bathy is not None:
-        xmin, xmax, ymin, ymax = bathy.extent
-        x0, x1, y0, y1 = max(xmin, x0), min(xmax, x1), max(ymin, y0), min(ymax, y1)
-        if not (x0 < x1 and y0 < y1):  # the track is off the map: the map's extent
-            x0, x1, y0, y1 = xmin, xmax, ymin, ymax
+    x0, x1, y0, y1 = map_window(cols, truth_names, est_names, states, bathy)
     if frame is not None:
         return _trajectory_latlon(cols, (tx, ty), est_names, states, bathy,
                                   (x0, x1, y0, y1), path, frame)
@@ -129,7 +102,7 @@ def trajectory_figure(cols: Columns, truth_names: Names, est_names: Names, state
     style = _sparse(tx)
     lines = [ax.plot(tx, ty, "k-", lw=2, label="reference" if style else "truth", **style)[0]]
     for name in est_names:
-        lines += ax.plot(*_position(cols, name, states), lw=1, label=display_name(name))
+        lines += ax.plot(*position(cols, name, states), lw=1, label=display_name(name))
     lines += ax.plot(tx[0], ty[0], "ko", ms=7, mfc="white", mew=2, ls="none", label="start")
     if bathy is not None:
         ax.set_xlim(x0, x1)
@@ -165,13 +138,13 @@ def _zoom_panel(zoom, ax, cols, truth_xy, est_names, states, lines, box) -> list
     tx, ty = truth_xy
     zoom.plot(tx, ty, "k-", lw=2, **_sparse(tx))
     for line, name in zip(lines[1:], est_names):
-        zoom.plot(*_position(cols, name, states), lw=1.2, color=line.get_color())
+        zoom.plot(*position(cols, name, states), lw=1.2, color=line.get_color())
     end = zoom.plot(tx[-1], ty[-1], "ks", ms=7, mfc="white", mew=2, ls="none",
                     label="truth at the end")
     zoom.set_xlim(box[0], box[1])
     zoom.set_ylim(box[2], box[3])
     off = [display_name(name) for name in est_names  # estimates that end outside the window
-           if not _inside(_position(cols, name, states), box)]
+           if not _inside(position(cols, name, states), box)]
     if off:
         zoom.text(0.02, 0.02, "ends outside this window: " + ", ".join(off), fontsize=8,
                   transform=zoom.transAxes, va="bottom",
@@ -207,7 +180,7 @@ def _trajectory_latlon(cols, truth_xy, est_names, states, bathy, lims, path, fra
     lines = [ax.plot(lon, lat, "k-", lw=2, label="reference" if style else "truth",
                      **style)[0]]
     for name in est_names:
-        elat, elon = frame.to_latlon(*_position(cols, name, states))
+        elat, elon = frame.to_latlon(*position(cols, name, states))
         lines += ax.plot(elon, elat, lw=1, label=display_name(name))
     lines += ax.plot(lon[0], lat[0], "ko", ms=7, mfc="white", mew=2, ls="none", label="start")
     # the view: the metric window's corners in degrees; equal ground scales on both axes
@@ -296,7 +269,7 @@ def error_norm_figure(cols: Columns, truth_names: Names, est_names: Names, state
     fig, ax = plt.subplots(figsize=(9.5, 4.4), dpi=110, layout="constrained")
     w = max(1, t.size // 100)  # steps of the moving RMS
     for k, name in enumerate(est_names):
-        ex, ey = _position(cols, name, states)
+        ex, ey = position(cols, name, states)
         e = np.hypot(ex - tx, ey - ty)
         color = f"C{k % 10}"
         ax.plot(t, e, lw=0.5, alpha=0.3, color=color, **_sparse(e))

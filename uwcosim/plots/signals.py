@@ -34,8 +34,9 @@ def _magnitude(y: np.ndarray) -> float:
 
 
 def _by_scale(names: list[str], mags: dict[str, float]) -> list[list[str]]:
-    """``names`` in clusters of magnitudes within a factor :data:`SCALE_RATIO` (smallest
-    first; zero-valued signals join the first), each in log order."""
+    """``names`` in clusters of magnitudes within a factor :data:`SCALE_RATIO` (zero-valued
+    signals join the smallest), each in log order, the clusters in the order of their first
+    column in the log."""
     pos = sorted((n for n in names if mags.get(n, 0.0) > 0), key=mags.__getitem__)
     clusters: list[list[str]] = []
     for n in pos:
@@ -46,7 +47,8 @@ def _by_scale(names: list[str], mags: dict[str, float]) -> list[list[str]]:
     if zero:
         clusters = [clusters[0] + zero, *clusters[1:]] if clusters else [zero]
     rank = {n: i for i, n in enumerate(names)}
-    return [sorted(c, key=rank.__getitem__) for c in clusters]
+    return sorted((sorted(c, key=rank.__getitem__) for c in clusters),
+                  key=lambda c: rank[c[0]])
 
 
 def signal_groups(names: list[str], units: dict[str, str] | None = None,

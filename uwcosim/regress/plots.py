@@ -44,13 +44,14 @@ def diff_plot(result, arrays: dict, out_dir: Path) -> Path:
     t, y, out = arrays["t"], arrays["y"], arrays["out"]
     fig, (ax, axd) = plt.subplots(2, 1, sharex=True, figsize=(8, 6.0), layout="constrained",
                                   gridspec_kw={"height_ratios": [2, 3]})
+    ms = 4 if out.sum() < 200 else 2  # many points outside: small marks
     ax.plot(arrays["t_ref"], arrays["y_ref"], color="0.3", lw=1.0, label="baseline")
     ax.plot(t, y, color="C0", lw=1.0, ls="--", label="run")
     if out.any():
         ax.plot(t[out], np.where(np.isnan(y[out]), arrays["lo"][out], y[out]), "x", color="C3",
-                ms=4, label=f"outside ({int(out.sum())})")
+                ms=ms, label=f"outside ({int(out.sum())})")
     ax.set_ylabel(result.name, fontsize=9)
-    ax.set_title("signal (the tolerance tube is too thin to see at this scale: below)",
+    ax.set_title("signal (its tolerance tube, too thin at this scale, in the panel below)",
                  fontsize=9, loc="left")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     # the difference from the baseline, against the tube drawn around the baseline's value
@@ -59,7 +60,7 @@ def diff_plot(result, arrays: dict, out_dir: Path) -> Path:
     axd.fill_between(t, lo, hi, color="C2", alpha=0.3, lw=0, label="tolerance tube")
     axd.plot(t, d, color="C0", lw=1.0, label="run - baseline")
     if out.any():
-        axd.plot(t[out], np.where(np.isnan(d[out]), lo[out], d[out]), "x", color="C3", ms=4,
+        axd.plot(t[out], np.where(np.isnan(d[out]), lo[out], d[out]), "x", color="C3", ms=ms,
                  label="outside")
     _diff_scale(axd, d, lo, hi)
     axd.axhline(0.0, color="0.5", lw=0.5)

@@ -1,10 +1,13 @@
 """Figures of one run and its ``report.md``.
 
-- ``trajectory.png``: truth and estimates over the bathymetry map, axes in metres or (a
-  georeferenced run, ``[output] trajectory_axes = "latlon"``) in degrees of longitude and
-  latitude;
-- ``position_error.png``: position error of each estimator against time with its 3-sigma bound;
-- ``position_error_norm.png``: the position error norm per step of the run;
+- ``trajectory.png``: truth and estimates over the bathymetry map and a panel zoomed on the end
+  of the run, axes in metres or (a georeferenced run, ``[output] trajectory_axes = "latlon"``)
+  in degrees of longitude and latitude;
+- ``position_error.png``: position error of each estimator against time with its 3-sigma
+  bound, each estimator on its own scale;
+- ``position_error_norm.png``: the position error norm per step of the run and its moving RMS.
+
+Estimators are labelled by :func:`~uwcosim.plots.labels.display_name`.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from uwcosim.models.states import position_velocity_indices  # noqa: E402
 from uwcosim.plots.labels import display_name, plain_log_ticks  # noqa: E402
@@ -78,48 +82,74 @@ def trajectory_figure(cols: Columns, truth_names: Names, est_names: Names, state
     """Track and estimates over the map (left, with the depth colorbar) and a second panel
     that zooms on the end of the run (right; at map scale the estimates hide under the
     truth), its window boxed on the map. The start and end markers are in the legend, below
-    the panels. With ``frame``, one panel with longitude and latitude axes (degrees; the
-    frame's inverse projection of everything drawn, the map's contours included). A truth with
-    values at few steps (a replay's fixes) is drawn as points."""
+    the panels. With ``frame``, the axes are longitude and latitude (degrees; the frame's
+    inverse projection of everything drawn, the map's contours included; equal ground scales).
+    A truth with values at few steps (a replay's fixes) is drawn as points."""
     ix, iy = position_velocity_indices(states)[0]
     tx, ty = cols[truth_names[ix]], cols[truth_names[iy]]
     x0, x1, y0, y1 = map_window(cols, truth_names, est_names, states, bathy)
-    if frame is not None:
-        return _trajectory_latlon(cols, (tx, ty), est_names, states, bathy,
-                                  (x0, x1, y0, y1), path, frame)
+    proj = _projection(frame)
     box = _end_window(cols, truth_names, est_names, states)
     # the map panel takes the shape of the view (equal axes): no empty bands around it
     ratio = float(np.clip((y1 - y0) / (x1 - x0), 0.45, 1.3)) if x1 > x0 else 1.0
     fig = plt.figure(figsize=(12.5, 5.6 * ratio + 1.6), dpi=110, layout="constrained")
     ax, zoom = fig.subplots(1, 2, width_ratios=[1.5, 1.0]) if box is not None \
         else (fig.subplots(), None)
-    ax.set_aspect("equal", adjustable="box" if bathy is not None else "datalim")
     if bathy is not None:
         GX, GY = np.meshgrid(np.linspace(x0, x1, 200), np.linspace(y0, y1, 200))
         D = bathy.depth(GX.ravel(), GY.ravel()).reshape(GX.shape)
-        im = ax.contourf(GX, GY, D, levels=30, cmap="viridis_r")
+        im = ax.contourf(*proj(GX, GY), D, levels=30, cmap="viridis_r")
         fig.colorbar(im, ax=ax, label="depth (m)", shrink=0.9, pad=0.01)
     style = _sparse(tx)
-    lines = [ax.plot(tx, ty, "k-", lw=2, label="reference" if style else "truth", **style)[0]]
+    lines = [ax.plot(*proj(tx, ty), "k-", lw=2, label="reference" if style else "truth",
+                     **style)[0]]
     for name in est_names:
-        lines += ax.plot(*position(cols, name, states), lw=1, label=display_name(name))
-    lines += ax.plot(tx[0], ty[0], "ko", ms=7, mfc="white", mew=2, ls="none", label="start")
-    if bathy is not None:
-        ax.set_xlim(x0, x1)
-        ax.set_ylim(y0, y1)
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_title("Trajectory and estimates over the map")
+        lines += ax.plot(*proj(*position(cols, name, states)), lw=1, label=display_name(name))
+    lines += ax.plot(*proj(tx[:1], ty[:1]), "ko", ms=7, mfc="white", mew=2, ls="none",
+                     label="start")
+    if bathy is not None or frame is not None:
+        _view(ax, proj, (x0, x1, y0, y1))
+    _axes_style(ax, frame, datalim=bathy is None and frame is None)
+    ax.set_title("Trajectory and estimates over the map" if bathy is not None
+                 else "Trajectory and estimates")
     if zoom is not None:
-        lines += _zoom_panel(zoom, ax, cols, (tx, ty), est_names, states, lines, box)
-    for a in (ax, zoom):
-        if a is not None:
-            a.tick_params(labelsize=9)
+        lines += _zoom_panel(zoom, ax, cols, (tx, ty), est_names, states, lines, box, frame)
     fig.legend(handles=lines, loc="outside lower center", ncol=min(len(lines), 5), fontsize=9,
                frameon=False)
     fig.savefig(path)
     plt.close(fig)
     return path
+
+
+def _projection(frame: LocalFrame | None):
+    """``(x, y) -> what the axes show``: metres as they are, or ``(longitude, latitude)``."""
+    if frame is None:
+        return lambda x, y: (x, y)
+    return lambda x, y: frame.to_latlon(x, y)[::-1]
+
+
+def _view(ax, proj, box) -> None:
+    """The axes' limits: the metric window ``box`` ``(x0, x1, y0, y1)`` through ``proj`` (in
+    degrees, the bounds of its projected corners)."""
+    x0, x1, y0, y1 = box
+    u, v = proj(np.array([x0, x1, x0, x1]), np.array([y0, y0, y1, y1]))
+    ax.set_xlim(float(np.min(u)), float(np.max(u)))
+    ax.set_ylim(float(np.min(v)), float(np.max(v)))
+
+
+def _axes_style(ax, frame: LocalFrame | None, datalim: bool = False) -> None:
+    """Axis titles with units, equal ground scales, ticks of 9 pt, plain degrees."""
+    if frame is None:
+        ax.set_aspect("equal", adjustable="datalim" if datalim else "box")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+    else:
+        ax.set_aspect(1.0 / np.cos(np.deg2rad(frame.lat0)), adjustable="box")
+        ax.set_xlabel("longitude (°)")
+        ax.set_ylabel("latitude (°)")
+        ax.ticklabel_format(useOffset=False, style="plain")
+        ax.xaxis.set_major_locator(MaxNLocator(5))  # long labels: fewer of them
+    ax.tick_params(labelsize=9)
 
 
 def _inside(xy, box) -> bool:
@@ -132,71 +162,31 @@ def _inside(xy, box) -> bool:
     return bool(box[0] <= x[k] <= box[1] and box[2] <= y[k] <= box[3])
 
 
-def _zoom_panel(zoom, ax, cols, truth_xy, est_names, states, lines, box) -> list:
+def _zoom_panel(zoom, ax, cols, truth_xy, est_names, states, lines, box, frame) -> list:
     """The end of the run at the scale of the errors, in its own panel; its window boxed on
     the map ``ax``. Returns the end marker (a legend entry)."""
+    proj = _projection(frame)
     tx, ty = truth_xy
-    zoom.plot(tx, ty, "k-", lw=2, **_sparse(tx))
+    zoom.plot(*proj(tx, ty), "k-", lw=2, **_sparse(tx))
     for line, name in zip(lines[1:], est_names):
-        zoom.plot(*position(cols, name, states), lw=1.2, color=line.get_color())
-    end = zoom.plot(tx[-1], ty[-1], "ks", ms=7, mfc="white", mew=2, ls="none",
+        zoom.plot(*proj(*position(cols, name, states)), lw=1.2, color=line.get_color())
+    end = zoom.plot(*proj(tx[-1:], ty[-1:]), "ks", ms=7, mfc="white", mew=2, ls="none",
                     label="truth at the end")
-    zoom.set_xlim(box[0], box[1])
-    zoom.set_ylim(box[2], box[3])
+    _view(zoom, proj, box)
     off = [display_name(name) for name in est_names  # estimates that end outside the window
            if not _inside(position(cols, name, states), box)]
     if off:
         zoom.text(0.02, 0.02, "ends outside this window: " + ", ".join(off), fontsize=8,
                   transform=zoom.transAxes, va="bottom",
                   bbox={"facecolor": "white", "edgecolor": "0.7", "alpha": 0.9})
-    zoom.set_aspect("equal", adjustable="box")
-    zoom.set_xlabel("x (m)")
-    zoom.set_ylabel("y (m)")
+    _axes_style(zoom, frame)
     zoom.set_title(f"Zoom on the end of the run (t = {cols['time'][-1]:g} s)")
     zoom.grid(alpha=0.3)
-    ax.indicate_inset((box[0], box[2], box[1] - box[0], box[3] - box[2]), edgecolor="red",
-                      lw=1.5, alpha=1.0)
-    ax.plot(tx[-1], ty[-1], "ks", ms=5, mfc="white", mew=1.5)
+    u0, u1 = zoom.get_xlim()
+    v0, v1 = zoom.get_ylim()
+    ax.indicate_inset((u0, v0, u1 - u0, v1 - v0), edgecolor="red", lw=1.5, alpha=1.0)
+    ax.plot(*proj(tx[-1:], ty[-1:]), "ks", ms=5, mfc="white", mew=1.5)
     return end
-
-
-def _trajectory_latlon(cols, truth_xy, est_names, states, bathy, lims, path, frame) -> Path:
-    """:func:`trajectory_figure` with longitude/latitude axes (no inset)."""
-    from mpl_toolkits.axes_grid1 import make_axes_locatable
-
-    x0, x1, y0, y1 = lims
-    tx, ty = truth_xy
-    ratio = float(np.clip((y1 - y0) / (x1 - x0), 0.45, 1.3)) if x1 > x0 else 1.0
-    fig, ax = plt.subplots(figsize=(7.5, 5.9 * ratio + 1.5), dpi=110)
-    if bathy is not None:
-        GX, GY = np.meshgrid(np.linspace(x0, x1, 200), np.linspace(y0, y1, 200))
-        D = bathy.depth(GX.ravel(), GY.ravel()).reshape(GX.shape)
-        la, lo = frame.to_latlon(GX, GY)
-        im = ax.contourf(lo, la, D, levels=30, cmap="viridis_r")
-        cax = make_axes_locatable(ax).append_axes("right", size="4%", pad=0.1)
-        fig.colorbar(im, cax=cax, label="depth (m)")
-    lat, lon = frame.to_latlon(tx, ty)
-    style = _sparse(lon)
-    lines = [ax.plot(lon, lat, "k-", lw=2, label="reference" if style else "truth",
-                     **style)[0]]
-    for name in est_names:
-        elat, elon = frame.to_latlon(*position(cols, name, states))
-        lines += ax.plot(elon, elat, lw=1, label=display_name(name))
-    lines += ax.plot(lon[0], lat[0], "ko", ms=7, mfc="white", mew=2, ls="none", label="start")
-    # the view: the metric window's corners in degrees; equal ground scales on both axes
-    cla, clo = frame.to_latlon(np.array([x0, x1, x0, x1]), np.array([y0, y0, y1, y1]))
-    ax.set_xlim(float(clo.min()), float(clo.max()))
-    ax.set_ylim(float(cla.min()), float(cla.max()))
-    ax.set_aspect(1.0 / np.cos(np.deg2rad(frame.lat0)), adjustable="box")
-    ax.set_xlabel("longitude (°)")
-    ax.set_ylabel("latitude (°)")
-    ax.ticklabel_format(useOffset=False, style="plain")
-    ax.set_title("Trajectory and estimates")
-    fig.tight_layout(rect=(0, 0.4 / fig.get_figheight(), 1, 1))
-    fig.legend(handles=lines, loc="lower center", ncol=4, fontsize=9, frameon=False)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
 
 
 def error_figure(cols: Columns, truth_names: Names, est_names: Names, states: Names,

@@ -125,6 +125,18 @@ def test_trajectory_has_a_zoom_panel_beside_the_map(figures, tmp_path):
     assert any("Dead reckoning" in t.get_text() for t in zoom.texts)
 
 
+def test_trajectory_without_a_map(figures, tmp_path):
+    from uwcosim.plots.run_figures import trajectory_figure
+
+    trajectory_figure(_run_columns(), TRUTH, NAMES[1:], STATES, None, tmp_path / "t.png")
+    fig = figures[-1]
+    ax, zoom = fig.axes
+    fig.canvas.draw()
+    assert ax.get_aspect() == 1.0 and zoom.get_aspect() == 1.0
+    assert not _overlap(ax.get_window_extent(), zoom.get_window_extent())
+    assert not zoom.texts  # every estimate ends inside the zoom
+
+
 def test_position_error_scale_per_filter_and_plain_bands(figures, tmp_path):
     from uwcosim.plots.run_figures import error_figure
 

@@ -1,10 +1,11 @@
 """Labels of the figures: display names of estimators and states, units, plain tick labels.
 
-One place for what a reader sees, so that every figure and table names a filter the same way:
-:func:`display_name` turns a log name (``dead_reckoning``, ``pfm_psi``, ``pf_1000``) into
-``Dead reckoning``, ``PFM-PSI``, ``PF 1000``. The log's column names stay as they are; only
-the labels change. :func:`plain_log_ticks` gives a log axis labels such as ``60`` or ``0.5``
-instead of matplotlib's ``6x10^1``.
+One place for what a reader sees, so that every figure (PNG and interactive) names a filter the
+same way: :func:`display_name` turns a log name (``dead_reckoning``, ``pfm_psi``, ``pf_1000``)
+into ``Dead reckoning``, ``PFM-PSI``, ``PF 1000``. The log's column names stay as they are; so
+do the result tables' (``report.md``, ``table.md``, the HTML tables): there the name is the key
+a user types in a scenario and reads in ``summary.json``. :func:`plain_log_ticks` gives a log
+axis labels such as ``60`` or ``0.5`` instead of matplotlib's ``6x10^1``.
 """
 
 from __future__ import annotations
@@ -17,8 +18,8 @@ from uwcosim.models.states import position_velocity_indices
 _KNOWN = {"dead_reckoning": "Dead reckoning", "point_mass": "Point mass", "pfm_psi": "PFM-PSI",
           "pmf": "PMF", "byo": "BYO"}
 #: parts of a name written in capitals (filter acronyms)
-_ACRONYMS = {"kf", "ekf", "ukf", "ckf", "cukf", "pf", "rbpf", "qivbf", "vb", "vbf", "pmf",
-             "psi", "pfm", "imm", "srukf", "sckf", "iekf", "gsf", "dr", "tan", "me", "cs"}
+_ACRONYMS = {"kf", "ekf", "ukf", "ckf", "cukf", "pf", "rpf", "rbpf", "qivbf", "vbakf", "vb",
+             "vbf", "pmf", "psi", "pfm", "imm", "srukf", "sckf", "iekf", "gsf", "dr", "tan"}
 
 
 def display_name(name: str) -> str:

@@ -90,6 +90,28 @@ def test_run_page_holds_provenance_table_and_plots(run_dir):
     assert (run_dir / "report.html").read_text() == first
 
 
+def test_run_page_trajectory_over_the_bathymetry_equal_aspect_titled_axes(run_dir):
+    """Issue 22: the interactive trajectory has the map behind it and equal scales; every
+    panel's axes are titled with units; the filters carry their display names."""
+    page = (run_dir / "report.html").read_text()
+    div = page.index('id="plot-trajectory"')
+    spec = page[div:page.index('id="plot-states"')]
+    assert '"type":"heatmap"' in spec and '"name":"bathymetry"' in spec
+    assert '"scaleanchor":"x"' in spec and '"scaleratio":1' in spec
+    assert '"text":"depth (m)"' in spec and '"name":"start"' in spec
+    for title in ("x (m)", "y (m)"):
+        assert f'"text":"{title}"' in spec, title
+    states = page[page.index('id="plot-states"'):page.index('id="plot-errors"')]
+    for title in ("x (m)", "y (m)", "vx (m/s)", "vy (m/s)", "time (s)"):
+        title = title.replace("/", "\\u002f")  # as Plotly's JSON writes it
+        assert f'"text":"{title}"' in states, title
+    errors = page[page.index('id="plot-errors"'):]
+    _, meta = read_log(run_dir / "log.parquet")
+    assert errors.count('"text":"error (m)"') == len(meta["estimators"])
+    assert '"name":"Dead reckoning"' in page and '"name":"PFM-PSI"' in page
+    assert '"name":"dead_reckoning"' not in page
+
+
 def _not_blank(png: Path) -> None:
     from PIL import Image
 

@@ -1,6 +1,7 @@
 """The self-contained HTML report of a campaign (``report.html``), with Plotly.
 
-Its table, the failed runs, the position RMSE of every run per variant, box plots of the RMSE
+Its table, the failed runs, the position RMSE of every run per variant (markers, no line
+joining independent runs), box plots of the RMSE
 over the runs and the PNG figures, from the campaign directory's files, with the blocks of
 :mod:`uwcosim.plots.html`.
 """
@@ -11,6 +12,7 @@ from pathlib import Path
 
 from uwcosim.campaign.aggregate import read_records, run_rows
 from uwcosim.plots.html import esc, num, page, plot, png, table
+from uwcosim.plots.labels import display_name
 
 
 def _campaign_plots(rows: list[dict]) -> list[str]:
@@ -21,21 +23,23 @@ def _campaign_plots(rows: list[dict]) -> list[str]:
     out = []
     for i, variant in enumerate(variants):
         fig = go.Figure()
-        for est in sorted({r["estimator"] for r in ok if r["variant"] == variant}):
+        for k, est in enumerate(sorted({r["estimator"] for r in ok
+                                        if r["variant"] == variant})):
             rs = sorted((r for r in ok if r["variant"] == variant and r["estimator"] == est),
                         key=lambda r: r["run"])
             fig.add_trace(go.Scatter(x=[r["run"] for r in rs],
                                      y=[r["rmse_position_m"] for r in rs],
-                                     mode="lines+markers", name=est))
-        fig.update_layout(title=f"Position RMSE of each run: {variant}", xaxis_title="run",
-                          xaxis_tickformat="d",
+                                     mode="markers", name=display_name(est),
+                                     marker={"size": 9, "symbol": k}))
+        fig.update_layout(title=f"Position RMSE of each run (independent runs): {variant}",
+                          xaxis_title="run", xaxis_tickformat="d", xaxis_dtick=1,
                           yaxis_title="position RMSE (m)", yaxis_type="log")
         out.append(plot(fig, f"plot-per-run-{i}", 420))
     fig = go.Figure()
     for label in sorted({(r["variant"], r["estimator"]) for r in ok}):
         fig.add_trace(go.Box(y=[r["rmse_position_m"] for r in ok
                                 if (r["variant"], r["estimator"]) == label],
-                             name=f"{label[1]} ({label[0]})", boxmean=True))
+                             name=f"{display_name(label[1])} ({label[0]})", boxmean=True))
     fig.update_layout(title="Position RMSE over the runs (box: quartiles, dashed: mean)",
                       yaxis_title="position RMSE per run (m)", yaxis_type="log",
                       showlegend=False)

@@ -1,9 +1,11 @@
 """The self-contained HTML report of one run (``report.html``), with Plotly.
 
 The scenario text, seed, package versions and FMU hashes from the log metadata, the reproduce
-command, the result table, interactive plots of truth against estimates and of the position
-errors with their 3-sigma bands, and the PNG figures; built from the run directory's files
-(:class:`~uwcosim.reports.runfiles.RunFiles`) with the blocks of :mod:`uwcosim.plots.html`.
+command, the result table, interactive plots (the trajectory over the bathymetry with equal
+scales, each state against time, the position errors with their 3-sigma bands; every axis
+titled with its unit, the filters by their display names), and the PNG figures; built from
+the run directory's files (:class:`~uwcosim.reports.runfiles.RunFiles`) with the blocks of
+:mod:`uwcosim.plots.html`.
 The table and the PNG figures use every step; the interactive plots are thinned.
 """
 
@@ -16,6 +18,8 @@ import numpy as np
 
 from uwcosim.models.states import position_velocity_indices
 from uwcosim.plots.html import band, esc, num, page, plot, png, table, thin
+from uwcosim.plots.labels import display_name, state_unit, with_unit
+from uwcosim.plots.track import map_window, position
 from uwcosim.reports.reproduce import reproduce_command, user_code_lines
 from uwcosim.reports.runfiles import RunFiles
 from uwcosim.runlog import columns
@@ -25,7 +29,6 @@ def _run_plots(run) -> list[str]:
     import plotly.graph_objects as go
     from plotly.subplots import make_subplots
 
-
     cols, states, truth, names = run.cols, run.states, run.truth, run.estimators
     idx = thin(cols["time"].size)
     t = cols["time"][idx]
@@ -34,26 +37,18 @@ def _run_plots(run) -> list[str]:
     colors = [f"hsl({(40 + 360 * i / max(len(names), 1)) % 360:.0f},65%,45%)"
               for i in range(len(names))]
     if pos:
-        ix, iy = pos
-        fig = go.Figure()
-        fig.add_trace(go.Scatter(x=cols[truth[ix]][idx], y=cols[truth[iy]][idx], name="truth",
-                                 line={"color": "black", "width": 3}))
-        for n, c in zip(names, colors):
-            fig.add_trace(go.Scatter(x=cols[columns.estimate(n, states[ix])][idx],
-                                     y=cols[columns.estimate(n, states[iy])][idx], name=n,
-                                     line={"color": c, "width": 1.5}))
-        fig.update_layout(title="Trajectory: truth and estimates (zoom with the mouse)",
-                          xaxis_title="x (m)", yaxis_title="y (m)",
-                          yaxis={"scaleanchor": "x", "scaleratio": 1})
-        out.append(plot(fig, "plot-trajectory", 600))
+        out.append(plot(_trajectory(go, run, idx, colors), "plot-trajectory", 650))
     fig = make_subplots(rows=len(states), cols=1, shared_xaxes=True, vertical_spacing=0.04,
                         subplot_titles=[f"{s}: truth and estimates" for s in states])
+    for r, s in enumerate(states, start=1):
+        fig.update_yaxes(title_text=with_unit(s, state_unit(s, states)), row=r, col=1)
     for r, (s, tr) in enumerate(zip(states, truth), start=1):
         fig.add_trace(go.Scatter(x=t, y=cols[tr][idx], name="truth", legendgroup="truth",
                                  showlegend=r == 1, line={"color": "black", "width": 2.5}),
                       row=r, col=1)
         for n, c in zip(names, colors):
-            fig.add_trace(go.Scatter(x=t, y=cols[columns.estimate(n, s)][idx], name=n,
+            fig.add_trace(go.Scatter(x=t, y=cols[columns.estimate(n, s)][idx],
+                                     name=display_name(n),
                                      legendgroup=n, showlegend=r == 1,
                                      line={"color": c, "width": 1.2}),
                           row=r, col=1)
@@ -61,12 +56,14 @@ def _run_plots(run) -> list[str]:
     out.append(plot(fig, "plot-states", 260 * len(states) + 80))
     if pos:
         ix, iy = pos
-        fig = make_subplots(rows=len(names), cols=1, shared_xaxes=True, shared_yaxes=True,
+        fig = make_subplots(rows=len(names), cols=1, shared_xaxes=True, shared_yaxes=False,
                             vertical_spacing=min(0.08, 0.3 / len(names)),
-                            subplot_titles=[f"{n}: position error with ±3σ" for n in names])
+                            subplot_titles=[f"{display_name(n)}: position error with ±3σ"
+                                            for n in names])
         styles = (("x", ix, "rgba(31,119,180,0.18)", "#1f77b4", "solid"),
                   ("y", iy, "rgba(255,127,14,0.18)", "#ff7f0e", "dash"))
         for r, n in enumerate(names, start=1):
+            mags = []
             for axis, i, fill, color, dash in styles:
                 sig = 3 * np.sqrt(cols[columns.variance(n, states[i])][idx])
                 fig.add_trace(band(go, t, sig, f"±3σ {axis}", fill, f"band-{axis}", r == 1),
@@ -76,10 +73,56 @@ def _run_plots(run) -> list[str]:
                                          legendgroup=f"err-{axis}", showlegend=r == 1,
                                          line={"color": color, "width": 1.2, "dash": dash}),
                               row=r, col=1)
-            fig.update_yaxes(title_text="m", row=r, col=1)
+                mags.append(np.abs(np.concatenate([err, sig])))
+            # each filter on its own scale (the 99th percentile: the start's wide bound and
+            # dead reckoning's drift do not flatten the rest; the mouse zooms out)
+            m = np.concatenate(mags)
+            m = m[np.isfinite(m)]
+            lim = 1.15 * float(np.percentile(m, 99)) if m.size else 0.0
+            fig.update_yaxes(title_text="error (m)", row=r, col=1,
+                             **({"range": [-lim, lim]} if lim > 0 else {}))
         fig.update_xaxes(title_text="time (s)", row=len(names), col=1)
         out.append(plot(fig, "plot-errors", 230 * len(names) + 100))
     return out
+
+
+#: cells per side of the bathymetry drawn behind the interactive trajectory
+MAP_CELLS = 150
+
+
+def _trajectory(go, run, idx, colors):
+    """The interactive trajectory: the bathymetry as a heatmap behind truth and estimates (the
+    window of ``trajectory.png``), equal scales on x and y, titled axes."""
+    cols, states, truth, names = run.cols, run.states, run.truth, run.estimators
+    ix, iy = position_velocity_indices(states)[0]
+    x0, x1, y0, y1 = map_window(cols, truth, names, states, run.bathymetry)
+    fig = go.Figure()
+    if run.bathymetry is not None:
+        gx, gy = np.linspace(x0, x1, MAP_CELLS), np.linspace(y0, y1, MAP_CELLS)
+        GX, GY = np.meshgrid(gx, gy)
+        D = run.bathymetry.depth(GX.ravel(), GY.ravel()).reshape(GX.shape)
+        fig.add_trace(go.Heatmap(x=np.round(gx, 1), y=np.round(gy, 1), z=np.round(D, 2),
+                                 name="bathymetry", colorscale="Viridis", reversescale=True,
+                                 colorbar={"title": {"text": "depth (m)"}, "x": 1.02},
+                                 hovertemplate="x %{x} m<br>y %{y} m<br>depth %{z} m"
+                                 "<extra></extra>"))
+    fig.add_trace(go.Scatter(x=cols[truth[ix]][idx], y=cols[truth[iy]][idx], name="truth",
+                             line={"color": "black", "width": 3}))
+    for n, c in zip(names, colors):
+        ex, ey = position(cols, n, states)
+        fig.add_trace(go.Scatter(x=ex[idx], y=ey[idx], name=display_name(n),
+                                 line={"color": c, "width": 1.5}))
+    fig.add_trace(go.Scatter(x=cols[truth[ix]][:1], y=cols[truth[iy]][:1], name="start",
+                             mode="markers", marker={"color": "white", "size": 11,
+                                                     "line": {"color": "black", "width": 2}}))
+    fig.update_layout(title="Trajectory over the bathymetry: truth and estimates "
+                            "(zoom with the mouse)",
+                      legend={"orientation": "h", "y": -0.12},
+                      xaxis={"title": {"text": "x (m)"}, "range": [x0, x1],
+                             "constrain": "domain"},
+                      yaxis={"title": {"text": "y (m)"}, "range": [y0, y1],
+                             "scaleanchor": "x", "scaleratio": 1, "constrain": "domain"})
+    return fig
 
 
 def _results_rows(summary: dict) -> list[list]:

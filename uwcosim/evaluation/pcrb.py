@@ -44,7 +44,8 @@ import numpy as np
 
 from uwcosim.core.errors import UwcosimError
 
-__all__ = ["Bound", "Recursion", "measurement_information", "pcrb", "position_bound", "time_average"]
+__all__ = ["Bound", "Recursion", "measurement_information", "pcrb", "position_bound",
+           "time_average"]
 
 #: forms of the recursion (:func:`pcrb`): which one each step used
 COVARIANCE_FORM = "covariance"  # (Q + F J^-1 F')^-1 + E[H' R^-1 H]: F, Q the same on every run

@@ -44,8 +44,12 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from uwcosim.core.errors import ScenarioError
-from uwcosim.evaluation.pcrb import Recursion, measurement_information, position_bound, \
-    time_average
+from uwcosim.evaluation.pcrb import (
+    Recursion,
+    measurement_information,
+    position_bound,
+    time_average,
+)
 from uwcosim.master.master import Master
 from uwcosim.master.observer import StepView
 from uwcosim.models.states import position_velocity_indices

@@ -35,6 +35,10 @@ def _print_result(result) -> None:
     s = result.summary
     if s["estimators"]:
         print(results_table(s), end="")
+        b = s.get("bound")
+        if b:
+            print(f"PCRB position {b['position_m']:.3f} m over {b.get('runs', '?')} truth runs "
+                  f"(each estimator's rmse_position_to_bound in summary.json)")
     else:
         print(f"status {s['status']}: {s['steps']} steps of {s['step_s']:g} s, "
               f"t = {s['start_time_s']:g} .. {s['end_time_s']:g} s")

@@ -4,7 +4,8 @@
   georeferenced run, ``[output] trajectory_axes = "latlon"``) in degrees of longitude and
   latitude;
 - ``position_error.png``: position error of each estimator against time with its 3-sigma bound;
-- ``position_error_norm.png``: the position error norm per step of the run;
+- ``position_error_norm.png``: the position error norm per step of the run (with the PCRB
+  under it when the log has one, :mod:`uwcosim.plots.bound`);
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from uwcosim.models.states import position_velocity_indices  # noqa: E402
+from uwcosim.plots.bound import bound_trace  # noqa: E402
 from uwcosim.runlog import columns  # noqa: E402
 
 
@@ -262,6 +264,7 @@ def error_norm_figure(cols: Columns, truth_names: Names, est_names: Names, state
         ex, ey = _position(cols, name, states)
         e = np.hypot(ex - tx, ey - ty)
         ax.plot(t, e, lw=0.8, label=name, **_sparse(e))
+    bound_trace(ax, cols)
     ax.set_yscale("log")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("position error norm (m)")

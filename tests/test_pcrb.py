@@ -167,3 +167,28 @@ def test_lost_measurements_bound_as_realised(tan, tmp_path):
                                   name="lost_measurements.toml"), 6, seed=4)
     assert np.all(pooled.std <= per_run.std * (1 + 1e-12))
     assert np.all(lossless.std[1:] < pooled.std[1:])
+
+
+def test_campaign_evaluation_bound(project_fmus, tmp_path):
+    """``[evaluation] bound`` in a campaign spec: each variant's bound over the campaign's own
+    runs (its seeds), in ``bound/VARIANT`` and in report.md beside each estimator."""
+    from uwcosim.campaign import load_campaign
+    from uwcosim.campaign.driver import run_campaign
+    from uwcosim.run.bound import BOUND_SUMMARY_FILE
+    from uwcosim.scenario import load_scenario
+
+    scen = (project_fmus.parent / "scenarios" / "lost_measurements.toml").as_posix()
+    spec = tmp_path / "c.toml"
+    spec.write_text(f'name = "c"\nseed = 5\nruns = 3\n[evaluation]\nbound = {{}}\n'
+                    f'[[variants]]\nname = "a0.3"\nscenario = "{scen}"\n'
+                    f'set = ["run.duration=50", "sensors.gps.loss.p=0.3"]\n')
+    campaign = load_campaign(spec)
+    run_campaign(campaign, tmp_path / "out", workers=1, figures=False)
+    got = json.loads((tmp_path / "out" / "bound" / "a0.3" / BOUND_SUMMARY_FILE).read_text())
+    assert got["runs"] == 3 and got["seed"] == 5
+    loaded = load_scenario(scen, ["run.duration=50", "sensors.gps.loss.p=0.3"])
+    assert got["position_m"] == scenario_bound(loaded, 3, seed=5).position_m()
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "## The posterior Cramér-Rao bound" in report and "| a0.3 |" in report
+    assert report.count("| a0.3 | ") >= 4 + 4  # the results table and the bound's rows
+

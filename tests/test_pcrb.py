@@ -192,3 +192,12 @@ def test_campaign_evaluation_bound(project_fmus, tmp_path):
     assert "## The posterior Cramér-Rao bound" in report and "| a0.3 |" in report
     assert report.count("| a0.3 | ") >= 4 + 4  # the results table and the bound's rows
 
+
+
+def test_the_bound_takes_the_truths_noise_not_the_filters(tan):
+    """A mistuned ``model.q_psd`` changes the filters' model, not the bound's."""
+    loaded = tan(["run.duration=20", "model.q_psd=[1.0, 1.0, 1.0, 1.0]"])
+    model = truth_model(loaded, None)
+    assert np.array_equal(model.q_psd, [0.05, 0.05, 1e-5, 1e-5])
+    same = scenario_bound(tan(["run.duration=20"]), 2, seed=3)
+    assert np.array_equal(scenario_bound(loaded, 2, seed=3).std, same.std)

@@ -11,7 +11,7 @@ With ``--figure DIR`` it draws ``pcrb_rmse_k_VARIANT.png`` there (log scale, the
 
     .venv/bin/python benchmarks/bound_rmse_k.py [--runs 20] [--figure docs/results/table1]
 
-About 6 s per run of the two Table 1 variants on one core of the (loaded) 2-core machine.
+About 7 min for `--runs 20` (40 filter runs, 40 truth runs) on the loaded 2-core machine.
 """
 
 from __future__ import annotations

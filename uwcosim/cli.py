@@ -8,7 +8,7 @@
 ``uwcosim fmu build|info|validate|check ...``, ``uwcosim regress RUN BASELINE``,
 ``uwcosim baseline update|check``, ``uwcosim campaign SPEC``, ``uwcosim verify example1``,
 ``uwcosim ssp export SCENARIO [--out FILE] [--ssp-version 1.0|2.0]``,
-``uwcosim completion bash|zsh|tcsh``.
+``uwcosim bound SCENARIO|CAMPAIGN [--runs N]``, ``uwcosim completion bash|zsh|tcsh``.
 Every ``--help`` shows the defaults.
 User errors are caught once here: one line on stderr, a non-zero exit status, no traceback.
 
@@ -35,6 +35,10 @@ def _print_result(result) -> None:
     s = result.summary
     if s["estimators"]:
         print(results_table(s), end="")
+        b = s.get("bound")
+        if b:
+            print(f"PCRB position {b['position_m']:.3f} m over {b.get('runs', '?')} truth runs "
+                  f"(each estimator's rmse_position_to_bound in summary.json)")
     else:
         print(f"status {s['status']}: {s['steps']} steps of {s['step_s']:g} s, "
               f"t = {s['start_time_s']:g} .. {s['end_time_s']:g} s")
@@ -238,6 +242,43 @@ def _cmd_ssp_export(args) -> int:
     return 0
 
 
+def _cmd_bound(args) -> int:
+    import tomllib
+
+    from uwcosim.run.bound import scenario_bound, write_bound
+
+    path = Path(args.spec)
+    try:
+        is_campaign = "variants" in tomllib.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        is_campaign = False  # the loaders say what is wrong with the file
+    if is_campaign:
+        from uwcosim.campaign import load_campaign
+        from uwcosim.campaign.bound import campaign_bounds
+
+        campaign = load_campaign(path)
+        if args.set or args.seed is not None:
+            raise UwcosimError(f"{path}: --set and --seed are for a scenario (a campaign's "
+                               f"variants and seed are in its spec)")
+        out = Path(args.out) if args.out else Path("runs") / f"bound_{campaign.spec.name}"
+        bounds = campaign_bounds(campaign, out, args.runs, per_run=args.per_run)
+    else:
+        from uwcosim.scenario import load_scenario
+
+        loaded = load_scenario(path, args.set or [], overrides_base=Path.cwd())
+        out = Path(args.out) if args.out else Path("runs") / f"bound_{loaded.path.stem}"
+        b = scenario_bound(loaded, args.runs if args.runs is not None else 100, seed=args.seed,
+                           per_run=args.per_run)
+        write_bound(b, out)
+        bounds = {loaded.path.stem: b}
+    for name, b in bounds.items():
+        forms = ", ".join(f"{n} {f}" for f, n in b.forms.items())
+        print(f"{name}: PCRB position {b.position_m():.3f} m (RMS over steps 1..{b.t.size - 1}; "
+              f"{b.runs} truth runs, seed {b.seed}; recursion: {forms})")
+    print(f"bound directory: {out}")
+    return 0
+
+
 def _cmd_campaign(args) -> int:
     from uwcosim.campaign import load_campaign
     from uwcosim.campaign.driver import run_campaign
@@ -415,6 +456,21 @@ def build_parser() -> argparse.ArgumentParser:
                    help="campaign directory (default: runs/campaign_<spec name>)")
     c.add_argument("--resume", action="store_true", help="skip runs already finished")
     c.set_defaults(func=_cmd_campaign)
+
+    bd = sub.add_parser("bound", help="the posterior Cramér-Rao bound of a scenario (or of "
+                        "each variant of a campaign) over N truth runs")
+    bd.add_argument("spec", help="scenario .toml, or a campaign spec (.toml with [[variants]])")
+    bd.add_argument("--runs", type=int, default=None,
+                    help="truth runs (default: 100; a campaign's runs)")
+    bd.add_argument("--seed", type=int, default=None,
+                    help="seed of the truth runs' seeds (default: run.seed; a campaign's seed)")
+    bd.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
+    bd.add_argument("--per-run", action="store_true",
+                    help="the recursion on each truth run alone, averaged: the bound given each "
+                    "run's loss pattern (linear models)")
+    bd.add_argument("--out", default=None,
+                    help="where bound.parquet and bound.json go (default runs/bound_<name>)")
+    bd.set_defaults(func=_cmd_bound)
 
     from uwcosim.regress.compare import DEFAULT_ATOL, DEFAULT_RTOL, DEFAULT_TTOL
 

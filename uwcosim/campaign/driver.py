@@ -22,6 +22,7 @@ from uwcosim.campaign.aggregate import (
     write_runs_parquet,
     write_tables,
 )
+from uwcosim.campaign.bound import bound_section, run_bounds
 from uwcosim.campaign.execute import pending_tasks, run_tasks
 from uwcosim.campaign.spec import LoadedCampaign
 from uwcosim.core.errors import RunInterrupted, ScenarioError, UwcosimError
@@ -101,6 +102,7 @@ def run_campaign(campaign: LoadedCampaign, out: Path, runs: int | None = None,
     interrupted = None
     try:
         failures = run_tasks(todo, results, workers, scheduler, total=len(tasks))
+        run_bounds(campaign, out, len(tasks) // len(campaign.spec.variants))  # [evaluation]
     except (KeyboardInterrupt, RunInterrupted) as exc:
         interrupted = exc
     finally:
@@ -145,8 +147,8 @@ def collect(campaign_dir: Path, figures: bool = True, out: Path | None = None,
     if figures:
         figs = rmse_per_run(rows, out) + [summary_chart(rows, out)]
     title = "# Campaign results (partial)" if partial else "# Campaign results"
-    text = f"{title}\n\n{partial}{md.read_text()}\n" + "".join(
-        f"![{p.stem}]({p.name})\n\n" for p in figs)
+    text = f"{title}\n\n{partial}{md.read_text()}\n" + bound_section(rows, Path(campaign_dir)) \
+        + "".join(f"![{p.stem}]({p.name})\n\n" for p in figs)
     (out / "report.md").write_text(text)
     failed = sorted({(r["variant"], r["run"], r["error"]) for r in rows if r["status"] != "ok"})
     return {"runs": n_runs, "table": agg,

@@ -38,6 +38,18 @@ class Variant(BaseModel):
     set: list[str] = []
 
 
+class CampaignBound(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True)
+    #: truth runs of the bound (default: the campaign's runs, the same seeds)
+    runs: int | None = Field(default=None, ge=1)
+
+
+class CampaignEvaluation(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True)
+    #: the PCRB of each variant over the campaign's truth runs (uwcosim.campaign.bound)
+    bound: CampaignBound | None = None
+
+
 class CampaignSpec(BaseModel):
     """Strict types, as scenarios: ``seed = "1"`` is refused."""
 
@@ -48,6 +60,7 @@ class CampaignSpec(BaseModel):
     runs: int = Field(default=10, ge=1)
     variants: list[Variant] = Field(min_length=1)
     keep_logs: bool = False
+    evaluation: CampaignEvaluation | None = None
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,11 @@ fixes): the metrics are then over the steps that have one, each estimator's
 ``reference_steps`` counts them and a note says so; a replay's ``simulation.json`` (and so its
 summary) has ``replay``: the file, its rows and time stamps.
 
+A run with ``[evaluation] bound`` (its log has ``bound.STATE`` columns) has ``bound``: the
+posterior Cramér-Rao bound's ``position_m`` (root mean square over steps 1..K of the bound on
+the position error norm, :mod:`uwcosim.evaluation.pcrb`), its truth runs, seed and recursion
+forms; and each estimator ``rmse_position_to_bound``, its position RMSE over that bound.
+
 Older runs: a log without the names of states, truth signals and estimators in its metadata has
 them recovered from the column names and ``[model] truth`` of the logged scenario text; a run
 directory without ``simulation.json`` takes status and timing from its ``summary.json`` (written
@@ -32,6 +37,7 @@ import numpy as np
 
 from uwcosim.core.errors import UwcosimError
 from uwcosim.evaluation.metrics import chi2_ppf, run_rmse
+from uwcosim.evaluation.pcrb import position_bound, time_average
 from uwcosim.models.states import position_velocity_indices
 from uwcosim.runlog import columns, read_log
 from uwcosim.runlog.rundir import SIMULATION_FILE, read_json, write_json
@@ -59,6 +65,18 @@ def estimator_metrics(cols: dict, name: str, truth: list[str], states: list[str]
     out["diverged"] = bool(diverged is not None and diverged.any())
     if out["diverged"]:
         out["diverged_at_s"] = float(cols["time"][np.argmax(diverged)])
+    return out
+
+
+def bound_metrics(cols: dict, meta: dict) -> dict | None:
+    """``summary.json``'s ``bound`` from a log's ``bound.STATE`` columns (None without)."""
+    states = columns.bound_states_in(cols)
+    if not states:
+        return None
+    pos = position_velocity_indices(states)[0]
+    std = np.stack([cols[columns.bound(s)] for s in states], axis=1)
+    out = {**(meta.get("bound") or {})}
+    out["position_m"] = time_average(position_bound(std, pos)) if pos else float("nan")
     return out
 
 
@@ -173,6 +191,12 @@ def evaluate(run_dir: str | Path, out: str | Path | None = None, write: bool = T
             m.update(run_info.get(name, {}))
             summary["estimators"][name] = m
         notes += _reference_notes(cols, truth, states, meta, summary["estimators"])
+    bound = bound_metrics(cols, meta)
+    if bound is not None:
+        summary["bound"] = bound
+        for m in summary["estimators"].values():
+            if "rmse_position_m" in m:
+                m["rmse_position_to_bound"] = m["rmse_position_m"] / bound["position_m"]
     if notes:
         summary["notes"] = list(dict.fromkeys([*summary.get("notes", []), *notes]))
     if write:

@@ -5,7 +5,8 @@
   in degrees of longitude and latitude;
 - ``position_error.png``: position error of each estimator against time with its 3-sigma
   bound, each estimator on its own scale;
-- ``position_error_norm.png``: the position error norm per step of the run and its moving RMS.
+- ``position_error_norm.png``: the position error norm per step of the run and its moving RMS
+  (with the PCRB under it when the log has one, :mod:`uwcosim.plots.bound`).
 
 Estimators are labelled by :func:`~uwcosim.plots.labels.display_name`.
 """
@@ -36,6 +37,7 @@ import numpy as np  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from uwcosim.models.states import position_velocity_indices  # noqa: E402
+from uwcosim.plots.bound import bound_trace  # noqa: E402
 from uwcosim.plots.labels import display_name, plain_log_ticks  # noqa: E402
 from uwcosim.plots.track import map_window, position  # noqa: E402
 from uwcosim.runlog import columns  # noqa: E402
@@ -265,6 +267,7 @@ def error_norm_figure(cols: Columns, truth_names: Names, est_names: Names, state
         ax.plot(t, e, lw=0.5, alpha=0.3, color=color, **_sparse(e))
         ax.plot(t, _moving_rms(e, w), lw=1.8, color=color, ls=_DASHES[k // 10 % len(_DASHES)],
                 label=display_name(name))
+    bound_trace(ax, cols)
     ax.set_yscale("log")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("position error norm (m)")

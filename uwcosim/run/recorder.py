@@ -113,15 +113,18 @@ class LogRecorder:
                  exact_slots: Sequence[int] = (),
                  exact: Mapping[int, tuple[int, bool]] | None = None,
                  kinds: Sequence[str] = (),
-                 derive: Callable[[np.ndarray], None] | None = None) -> None:
+                 derive: Callable[[np.ndarray], None] | None = None,
+                 bound: np.ndarray | None = None) -> None:
         """``exact_slots``: the bus slots of the logger's exact columns (String, Int64,
         UInt64), in its order; ``exact``: the side bus position and signedness of the 64-bit
         ones (the others: the text of a String, or the bus value of a narrower integer);
         ``kinds``: "string" or "int" per exact slot. ``derive(row)``: fills the columns
         computed from the rest of a row before it is written (a georeferenced run's
-        latitude/longitude, :mod:`uwcosim.run.geocolumns`)."""
+        latitude/longitude, :mod:`uwcosim.run.geocolumns`). ``bound``: ``(K + 1, n)``, the
+        ``bound.STATE`` columns of each step (:mod:`uwcosim.run.bound`; NaN past its end)."""
         self.layout, self.logger = layout, logger
         self.derive = derive
+        self.bound = bound
         self.sig = np.asarray(signal_slots, dtype=np.intp)
         exact = exact or {}
         kinds = list(kinds) or ["string"] * len(exact_slots)
@@ -164,6 +167,8 @@ class LogRecorder:
         row[self.layout.estimates] = values
         if self.derive is not None:
             self.derive(row)
+        if self.bound is not None:
+            row[self.layout.bound_part] = self.bound[k] if k < len(self.bound) else np.nan
         self.logger.append(row, np.array(received + diverged, dtype=bool), exact)
         self._next = k + 1
 

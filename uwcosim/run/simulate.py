@@ -55,6 +55,7 @@ from uwcosim.master.observer import Observer
 from uwcosim.master.system import System
 from uwcosim.models.states import position_velocity_indices
 from uwcosim.run.bank import EstimatorBank, plans
+from uwcosim.run.bound import bound_runs, scenario_bound
 from uwcosim.run.density import DensitySnapshots
 from uwcosim.run.divergence import DivergenceCheck, default_bound
 from uwcosim.run.factory import build_model, scenario_map
@@ -282,6 +283,15 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
         master = Master(to_system(loaded), seed=seed)
     else:
         master.reset(seed)
+    pcrb = None
+    if spec.estimators and bound_runs(loaded) is not None:  # truth runs of their own master
+        try:
+            pcrb = scenario_bound(loaded, bound_runs(loaded), seed=master.seed,
+                                  work_dir=out_dir)
+        except BaseException:
+            if owner:
+                master.close()
+            raise
     problems = pattern_problems(master, spec.log.signals, str(loaded.path))
     if problems:  # a bad [log] signals pattern: a scenario error before anything runs
         if owner:
@@ -355,7 +365,8 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                 tuple(signals),
                 tuple(master.sensors.names) if bank is not None else (),
                 tuple(p.name for p in bank.plans) if bank is not None else (),
-                tuple(model.state_names) if bank is not None else (), geo=geo)
+                tuple(model.state_names) if bank is not None else (), geo=geo,
+                bound=pcrb is not None)
             meta = {
                 "scenario_text": loaded.text, "scenario_sha256": loaded.sha256,
                 "scenario_path": loaded.path.name, "overrides": list(loaded.overrides),
@@ -370,6 +381,8 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                 code = user_code(spec)
                 if code:  # a user's filters and model: where they came from (run.provenance)
                     meta["user_code"] = code
+            if pcrb is not None:
+                meta["bound"] = pcrb.summary()
             if bathy is not None:
                 meta["map"] = MAP_FILE
             if master.variable_maps():  # third-party FMUs: roles, variables and conversions
@@ -388,7 +401,8 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                 [slots[c] for c in logger.exact_columns], master.exact,
                 ["string" if dtypes[c] == np.dtype(object) else "int"
                  for c in logger.exact_columns],
-                derive=GeoColumns(layout, frame, truth) if geo else None)
+                derive=GeoColumns(layout, frame, truth) if geo else None,
+                bound=pcrb.std if pcrb is not None else None)
             # the observers, in the order the master calls them (module docstring)
             if bank is not None:
                 bank.sink = recorder.estimates

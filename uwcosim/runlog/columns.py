@@ -11,6 +11,8 @@ A run's log has one row per communication step, ``time`` first, then
 - in a georeferenced run (:mod:`uwcosim.models.geo`): the latitude and longitude (degrees,
   WGS 84) of the truth's position, ``truth.lat_deg``, ``truth.lon_deg``, then of each
   estimator's, ``est.E.lat_deg``, ``est.E.lon_deg``;
+- with ``[evaluation] bound`` (:mod:`uwcosim.run.bound`): the posterior Cramér-Rao bound on
+  each state's RMSE at the step, ``bound.STATE`` (no such columns without it);
 - the Boolean flags, after the float columns: ``z.NAME.received`` per measurement, then
   ``est.E.diverged`` per estimator.
 
@@ -31,6 +33,7 @@ from typing import NamedTuple
 TIME = "time"
 _EST = "est."
 _Z = "z."
+_BOUND = "bound."
 
 
 def element(signal: str, index: tuple[int, ...]) -> str:
@@ -81,6 +84,22 @@ def diverged(estimator: str) -> str:
     return f"{_EST}{estimator}.diverged"
 
 
+def bound(state: str) -> str:
+    """``bound.STATE``: the posterior Cramér-Rao bound on ``state``'s RMSE at the step."""
+    return f"{_BOUND}{state}"
+
+
+def bound_position() -> str:
+    """``bound.position``: the bound on the position error norm's RMSE (``bound.parquet``)."""
+    return f"{_BOUND}position"
+
+
+def bound_states_in(columns: Iterable[str]) -> list[str]:
+    """The states of an existing log's ``bound.STATE`` columns, in column order."""
+    return [c[len(_BOUND):] for c in columns
+            if c.startswith(_BOUND) and c != bound_position()]
+
+
 #: whose position a latitude/longitude column gives: the truth's, or an estimator's
 TRUTH = None
 
@@ -126,6 +145,8 @@ class LogLayout:
     states: tuple[str, ...] = ()
     #: latitude/longitude columns of the truth and of each estimator (a georeferenced run)
     geo: bool = False
+    #: the ``bound.STATE`` columns, one per state (a run with ``[evaluation] bound``)
+    bound: bool = False
 
     @property
     def block(self) -> EstimateBlock:
@@ -140,6 +161,8 @@ class LogLayout:
         if self.geo:
             for owner in (TRUTH, *self.estimators):
                 out += [latitude(owner), longitude(owner)]
+        if self.bound:
+            out += [bound(s) for s in self.states]
         return out
 
     @property
@@ -150,7 +173,7 @@ class LogLayout:
     @property
     def width(self) -> int:
         """Floats per row, ``time`` included."""
-        return self.geo_part.stop
+        return self.bound_part.stop
 
     @property
     def signal_part(self) -> slice:
@@ -172,6 +195,12 @@ class LogLayout:
         """The latitude/longitude pairs (truth, then each estimator; empty unless ``geo``)."""
         start = self.estimates.stop
         return slice(start, start + (2 * (1 + len(self.estimators)) if self.geo else 0))
+
+    @property
+    def bound_part(self) -> slice:
+        """The ``bound.STATE`` columns (empty unless ``bound``)."""
+        start = self.geo_part.stop
+        return slice(start, start + (len(self.states) if self.bound else 0))
 
 
 def estimators_in(columns: Iterable[str]) -> list[str]:

@@ -227,6 +227,19 @@ class EstimationSpec(Strict):
         return self
 
 
+class BoundSpec(Strict):
+    runs: PositiveInt = Field(
+        description="truth runs the PCRB's expectations are taken over (uwcosim.run.bound)")
+
+
+class EvaluationSpec(Strict):
+    #: the posterior Cramér-Rao bound beside the filters (``bound.*`` log columns,
+    #: ``summary.json`` ``bound.position_m``); None: none
+    bound: BoundSpec | None = Field(
+        None, description="the posterior Cramér-Rao bound over N truth runs, e.g. "
+        "{ runs = 100 } (default: none)")
+
+
 class LogSpec(Strict):
     signals: list[Str] = ["*"]
     chunk_steps: PositiveInt = 1000
@@ -253,6 +266,7 @@ class Scenario(Strict):
     model: ModelSpec | None = None
     estimation: EstimationSpec | None = None
     estimators: dict[Str, EstimatorSpec] = {}
+    evaluation: EvaluationSpec | None = None
     log: LogSpec = LogSpec()
     output: OutputSpec = OutputSpec()
     replay: ReplaySpec | None = None

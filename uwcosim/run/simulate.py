@@ -319,16 +319,18 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
 
     def finalize(status: str, message: str, code: int) -> str:
         """The signal watcher's finalization when the main thread is stuck in an FMU call."""
-        if status == "interrupted":
-            message = f"interrupted at t={last_time():g} by {message.rsplit(' ', 1)[-1]}"
-        message = kept(message)
         if logger is not None:
             # the steps the bank has not filtered yet: the main thread is stuck in an FMU
-            # call, not in the bank (if it is, their rows are written with NaN estimates)
+            # call, not in the bank (if it is, their rows are written with NaN estimates);
+            # first, so that the message names the log's last row
             if bank is not None and bank.busy:
                 recorder.flush()
             else:
                 _flush_steps(bank, recorder)
+        if status == "interrupted":
+            message = f"interrupted at t={last_time():g} by {message.rsplit(' ', 1)[-1]}"
+        message = kept(message)
+        if logger is not None:
             logger.close()
         try:
             finish(status, message)

@@ -40,7 +40,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from uwcosim.core import fmucall, process, scratch
+from uwcosim.core import fmucall, process, scratch, supervise
 from uwcosim.core.errors import RunInterrupted
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -225,6 +225,7 @@ class RunGuard:
         try:
             print(f"uwcosim: error: {message}", file=sys.stderr, flush=True)
         finally:
+            supervise.done(code)  # the run chose its exit status (a supervised child)
             os._exit(code)
 
 

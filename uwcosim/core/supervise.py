@@ -15,6 +15,9 @@ that steps them. The child ends with ``os._exit`` after what the interpreter's e
 for a run (workers killed, scratch folders removed, logging and output flushed), not after its
 teardown of every module (slow with Numba loaded: most of the time a stop took).
 
+The child's temporary files (unzipped FMUs, extracted SSP members, its workers' files) go
+to a folder of the parent's (``TMPDIR``), removed when the child has ended, however it ended.
+
 Signals: the parent passes SIGINT, SIGTERM and SIGHUP on to the child (unless they are ignored,
 e.g. under ``nohup``: the child inherits that) and otherwise ignores them; the child stops as a
 run always does (:mod:`uwcosim.core.runguard`). The child dies with the parent (``kill -9`` of
@@ -27,8 +30,10 @@ from __future__ import annotations
 
 import logging
 import os
+import shutil
 import signal
 import sys
+import tempfile
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -101,6 +106,7 @@ def supervise(command: Callable[[], int]) -> int | Death:
     r, w = os.pipe()
     fmucall.clear()
     parent = os.getpid()
+    tmp = tempfile.mkdtemp(prefix="uwcosim_proc_")  # the child's temporary folder
     sys.stdout.flush()
     sys.stderr.flush()
     pid = os.fork()
@@ -108,6 +114,8 @@ def supervise(command: Callable[[], int]) -> int | Death:
         os.close(r)
         _fd = w
         process.die_with_parent(parent)
+        tempfile.tempdir = tmp  # its scratch folders and its workers' (TMPDIR) go there
+        os.environ["TMPDIR"] = tmp
         try:
             code = command()
         except SystemExit as exc:  # argparse and friends
@@ -147,6 +155,7 @@ def supervise(command: Callable[[], int]) -> int | Death:
     finally:
         for s, old in saved.items():
             signal.signal(s, old)
+        shutil.rmtree(tmp, ignore_errors=True)  # what a dead child could not remove
     out_dir = code = None
     for line in data.decode("utf-8", "surrogateescape").splitlines():
         key, _, value = line.partition(" ")

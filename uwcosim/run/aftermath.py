@@ -5,7 +5,8 @@ process (``exit``, ``abort``, a segmentation fault: see :class:`~uwcosim.core.su
 :func:`finish_dead_run` does what the run would have done on a failure: the log is rewritten
 from its journal into a normal ``log.parquet`` (every finished row group, as after ``kill -9``;
 :func:`uwcosim.runlog.recover_log`), ``simulation.json`` says ``failed`` with the one-line
-error, and ``summary.json`` is evaluated from those files (metrics of what was logged).
+error, and ``summary.json`` is evaluated from those files (metrics of what was logged). A run
+that died before its first row group has no log: the writer's empty stubs are removed.
 """
 
 from __future__ import annotations
@@ -32,11 +33,14 @@ def finish_dead_run(out_dir: str | Path, message: str, status: str = "failed") -
             recover_log(log)
         if log.is_file():
             cols, meta = read_log(log)
-    except (UwcosimError, OSError):
-        pass  # no complete schema yet: nothing was logged
+    except (UwcosimError, OSError):  # the journal has no schema yet: nothing was logged
+        for stub in (journal_path(log), log):  # what the writer had opened: unreadable
+            stub.unlink(missing_ok=True)
     t = cols.get("time", np.zeros(0))
     if t.size:
         message = f"{message} (log up to t={float(t[-1]):g} kept in {log})"
+    else:
+        message = f"{message} (no log row was written)"
     record = {"scenario": meta.get("scenario_name", Path(meta.get("scenario_path", "?")).stem),
               "seed": meta.get("seed"), "status": status, "error": message,
               "steps": max(int(t.size) - 1, 0), "step_s": meta.get("step"), "timing": {},

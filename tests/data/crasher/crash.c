@@ -4,8 +4,9 @@
  *
  * Parameters (reals): mode 0 nothing, 1 segmentation fault, 2 exit(exit_code), 3 abort(),
  * 4 spin (busy loop, forever), 5 sleep (an hour); where 1 doStep, 2 an output getter
- * (fmi2GetReal / fmi3GetFloat64: the evaluation it triggers), 3 initialization (the first
- * evaluation, in initialization mode); crash_time: the fault happens once time >= crash_time
+ * (fmi2GetReal / fmi3GetFloat64: the evaluation it triggers), 3 initialization (the
+ * first evaluation of the library's instance: the outputs read at the start time, right after
+ * exitInitializationMode; the template has no hook inside it); crash_time: the fault happens once time >= crash_time
  * (doStep: its start time; getter: the time of the values read).
  *
  * At library load (before any parameter exists) the environment variable UWC_CRASHER_AT_LOAD
@@ -58,7 +59,9 @@ __attribute__((constructor)) static void at_load(void) {
 #endif
 
 int uwc_hook_eval(uwc_inst *m) {
-    maybe_crash(m, m->mode == UWC_INIT ? AT_INIT : AT_GET, m->r[0]);
+    static int evaluations = 0; /* of this library: one instance per process in the tests */
+    if (evaluations++ == 0) maybe_crash(m, AT_INIT, m->r[0]);
+    maybe_crash(m, AT_GET, m->r[0]);
     return UWC_OK;
 }
 

@@ -249,3 +249,37 @@ def test_the_unpacked_size_limit_is_configurable_and_only_what_is_needed_is_unpa
     assert all(n == "modelDescription.xml" or n.startswith(("binaries/", "resources/"))
                for n in got)
     assert {n for n in names if n.startswith("binaries/x86_64-linux/")} <= got
+
+
+CAMPAIGN = """
+seed = 3
+runs = 6
+[[variants]]
+name = "v"
+scenario = "{root}/scenarios/tan_terrain.toml"
+set = ['estimators={{ekf={{type="ekf"}}}}', "run.duration=3000"]
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP],
+                         ids=["SIGINT", "SIGTERM", "SIGHUP"])
+def test_an_interrupted_campaign_leaves_no_temporary_folder(tmp_path, project_fmus, child_env,
+                                                           sig):
+    """The pool workers' run folders (``uwcosim_run_*``) and unzipped FMUs are in the
+    campaign's temporary folder, removed when the campaign stops (item 18)."""
+    spec = tmp_path / "c.toml"
+    spec.write_text(CAMPAIGN.format(root=ROOT))
+    tmp = Path(child_env["TMPDIR"])
+    proc = subprocess.Popen([sys.executable, "-m", "uwcosim", "campaign", str(spec), "--out",
+                             str(tmp_path / "o"), "--workers", "2"], cwd=ROOT, env=child_env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_default_sigint)
+    deadline = time.monotonic() + 120
+    while not list(tmp.rglob("uwcosim_run_*")):  # a run is in flight
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + sig, err
+    assert list(tmp.iterdir()) == []

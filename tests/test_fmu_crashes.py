@@ -283,3 +283,50 @@ def test_an_interrupted_campaign_leaves_no_temporary_folder(tmp_path, project_fm
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 128 + sig, err
     assert list(tmp.iterdir()) == []
+
+
+def _without_token(src: Path, dst: Path) -> Path:
+    import re
+
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                data = re.sub(rb'\s+instantiationToken="[^"]*"', b"", data)
+            zout.writestr(item.filename, data)
+    return dst
+
+
+@pytest.mark.parametrize(("case", "expected"), [
+    ("fmu_parameter", "key 'map.fmu_parameter': FMU 'sounder' has no variable 'nope'"),
+    ("no_token", "has no instantiationToken (FMI 3.0 requires one)"),
+    ("shared_vr", "inputs 'vx' and 'vy' share value reference 1"),
+    ("outside", "key 'fmus.vehicle.start': the vehicle starts at (x, y) = (-500, 18000) m, "
+                "outside the map (x in [0, 25000], y in [0, 25000])"),
+])
+def test_check_finds_what_run_refuses_at_load(tmp_path, project_fmus, case, expected):
+    """Item 16: ``check`` reports what ``run`` refuses when it loads (and ``run`` names the
+    same key)."""
+    from uwcosim.api import run_scenario
+    from uwcosim.core.errors import UwcosimError
+    from uwcosim.run.preflight import check_scenario
+    from uwcosim.scenario import load_scenario
+
+    dvl = project_fmus / "DVL.fmu"
+    if case == "no_token":
+        sets = [f'fmus.dvl.path="{_without_token(dvl, tmp_path / "t.fmu")}"']
+    elif case == "shared_vr":
+        sets = [f'fmus.dvl.path="{_shared_vr(dvl, tmp_path / "v.fmu")}"']
+    else:
+        sets = {"fmu_parameter": ["map.fmu_parameter=sounder.nope"],
+                "outside": ["fmus.vehicle.start.x=-500.0"]}[case]
+    report = check_scenario(SCEN, sets)
+    assert [p for p in report.problems if expected in p.message], report.problems
+    assert report.exit_code != 0
+    with pytest.raises(UwcosimError) as err:
+        run_scenario(load_scenario(SCEN, [*sets, "run.duration=3"]), tmp_path / "run",
+                     figures=False)
+    if case != "outside":  # run: the FMU's own words at t=0 ("outside the map")
+        assert expected in str(err.value)
+    else:
+        assert "outside the map" in str(err.value)

@@ -110,6 +110,11 @@ class FMUAdapter:
         missing = missing_features(self.md)
         if missing:
             raise FMUError(f"{self.path}: FMU '{name}' cannot be run: {missing[0]}")
+        token = self.md.instantiationToken if self.fmi3 else self.md.guid
+        if not token:  # fmpy would pass None to the library's instantiate function
+            raise FMUError(f"{self.path}: FMU '{name}' cannot be run: its modelDescription.xml "
+                           f"has no {'instantiationToken' if self.fmi3 else 'guid'} (FMI "
+                           f"{self.md.fmiVersion} requires one)")
         clashes = duplicate_references(self.md)
         if clashes:  # one value for two variables: silently wrong inputs or outputs
             raise FMUError(f"{self.path}: FMU '{name}' cannot be run: {clashes[0]} (an FMU's "

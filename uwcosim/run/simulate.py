@@ -59,6 +59,7 @@ from uwcosim.run.density import DensitySnapshots
 from uwcosim.run.divergence import DivergenceCheck, default_bound
 from uwcosim.run.factory import build_model, scenario_map
 from uwcosim.run.geocolumns import GeoColumns
+from uwcosim.run.preflight import map_parameter_problem
 from uwcosim.run.provenance import user_code
 from uwcosim.run.recorder import LogRecorder, logged_signals, pattern_problems
 from uwcosim.run.replay import ReplaySource, replay_source
@@ -283,6 +284,9 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
     else:
         master.reset(seed)
     problems = pattern_problems(master, spec.log.signals, str(loaded.path))
+    if isinstance(master, Master) and overrides:  # the map file's parameter: its key named
+        problem = map_parameter_problem(loaded, master)
+        problems += [problem] if problem is not None else []
     if problems:  # a bad [log] signals pattern: a scenario error before anything runs
         if owner:
             master.close()

@@ -330,3 +330,27 @@ def test_check_finds_what_run_refuses_at_load(tmp_path, project_fmus, case, expe
         assert expected in str(err.value)
     else:
         assert "outside the map" in str(err.value)
+
+
+def test_a_terminals_ctrl_c_to_the_process_group_stops_the_supervised_run(tmp_path,
+                                                                           project_fmus,
+                                                                           child_env):
+    """A terminal sends Ctrl-C to its foreground process group: the supervising parent only
+    (the run's child has a group of its own), which passes it on once."""
+    out = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, "-m", "uwcosim", "run", str(SCEN), "--out",
+                             str(out), "--no-figures", "--set", 'estimators={ekf={type="ekf"}}',
+                             "--set", "run.duration=12000"], cwd=ROOT, env=child_env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    while not (out / "log.parquet").exists():
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.02)
+    time.sleep(1.0)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and err.strip().count("\n") == 0, err
+    assert "interrupted at t=" in err and "by SIGINT" in err
+    assert json.loads((out / "summary.json").read_text())["status"] == "interrupted"
+    assert list(Path(child_env["TMPDIR"]).iterdir()) == []

@@ -20,8 +20,10 @@ to a folder of the parent's (``TMPDIR``), removed when the child has ended, howe
 
 Signals: the parent passes SIGINT, SIGTERM and SIGHUP on to the child (unless they are ignored,
 e.g. under ``nohup``: the child inherits that) and otherwise ignores them; the child stops as a
-run always does (:mod:`uwcosim.core.runguard`). The child dies with the parent (``kill -9`` of
-the parent: :func:`uwcosim.core.process.die_with_parent`). ``UWCOSIM_SUPERVISE=0`` runs in one
+run always does (:mod:`uwcosim.core.runguard`). The child has a process group of its own, so a
+terminal's Ctrl-C (sent to the foreground group) reaches it once, through the parent. The
+child dies with the parent (``kill -9`` of the parent:
+:func:`uwcosim.core.process.die_with_parent`). ``UWCOSIM_SUPERVISE=0`` runs in one
 process (e.g. under a debugger). POSIX only; elsewhere :func:`supervise` calls the command
 directly.
 """
@@ -109,10 +111,31 @@ def supervise(command: Callable[[], int]) -> int | Death:
     tmp = tempfile.mkdtemp(prefix="uwcosim_proc_")  # the child's temporary folder
     sys.stdout.flush()
     sys.stderr.flush()
+    target: list[int] = []
+    forwarded: list[int] = []
+
+    def forward(signum, frame) -> None:
+        forwarded.append(signum)
+        for pid in target:
+            try:
+                os.kill(pid, signum)
+            except ProcessLookupError:
+                pass
+
+    saved = {}  # installed before the fork: a signal in between is passed on, not lost
+    for s in _FORWARDED:
+        if signal.getsignal(s) is not signal.SIG_IGN:
+            saved[s] = signal.signal(s, forward)
+    before = len(forwarded)
     pid = os.fork()
     if pid == 0:  # the child: the command, then its exit status to the parent
+        for s, old in saved.items():
+            signal.signal(s, old)
+        for s in forwarded[before:]:  # reached the child before its own handlers were back
+            signal.raise_signal(s)
         os.close(r)
         _fd = w
+        os.setpgid(0, 0)  # a terminal's Ctrl-C reaches the parent only, which passes it on
         process.die_with_parent(parent)
         tempfile.tempdir = tmp  # its scratch folders and its workers' (TMPDIR) go there
         os.environ["TMPDIR"] = tmp
@@ -133,19 +156,9 @@ def supervise(command: Callable[[], int]) -> int | Death:
             done(code)
             os._exit(code)
     os.close(w)
-    forwarded: list[int] = []
-
-    def forward(signum, frame) -> None:
-        forwarded.append(signum)
-        try:
-            os.kill(pid, signum)
-        except ProcessLookupError:
-            pass
-
-    saved = {}
-    for s in _FORWARDED:
-        if signal.getsignal(s) is not signal.SIG_IGN:
-            saved[s] = signal.signal(s, forward)
+    target.append(pid)
+    for s in list(forwarded):  # arrived during the fork
+        os.kill(pid, s)
     data = b""
     try:
         with os.fdopen(r, "rb", buffering=0) as pipe:

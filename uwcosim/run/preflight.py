@@ -36,6 +36,7 @@ from uwcosim.core.plugins import describe_error
 from uwcosim.filters.base import build
 from uwcosim.fmi.archive import open_archive
 from uwcosim.master.master import Master
+from uwcosim.models.terrain import Bathymetry
 from uwcosim.run.factory import build_model, scenario_map
 from uwcosim.run.recorder import pattern_problems
 from uwcosim.run.replay import replay_source
@@ -103,7 +104,7 @@ def map_parameter_problem(loaded: LoadedScenario, master: Master) -> ScenarioErr
                          f"e.g. 'sounder.mapFile')")
 
 
-def start_position_problem(loaded: LoadedScenario, bathy) -> Problem | None:
+def start_position_problem(loaded: LoadedScenario, bathy: Bathymetry | None) -> Problem | None:
     """The vehicle's start position outside the map: the start values (the scenario's, else
     the FMU's) of what drives the ``x`` and ``y`` inputs of the map's FMU; the run would fail
     at its first step."""

@@ -1,5 +1,6 @@
 """Shared fixtures: the project's FMUs in fmus/ (built incrementally, with the test model
-FaultInjector of tests/fault_injector.py) and scenario helpers."""
+FaultInjector of tests/fault_injector.py and Crasher of tests/crasher.py) and scenario
+helpers."""
 
 from __future__ import annotations
 
@@ -11,16 +12,19 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
 
 try:
+    from crasher import register as register_crasher
     from fault_injector import register
 except ImportError:  # pragma: no cover - run from the project root as a package
+    from tests.crasher import register as register_crasher
     from tests.fault_injector import register
 
 register()  # every FMU build of the test session includes FaultInjector
+register_crasher()  # and Crasher
 
 
 @pytest.fixture(scope="session")
 def project_fmus() -> Path:
-    """``fmus/`` with every project FMU and FaultInjector, built if missing or out of date
+    """``fmus/`` with every project FMU, FaultInjector and Crasher, built if missing or out of date
     (about 3 s)."""
     from uwcosim.fmu.build import build_fmus
 

@@ -103,6 +103,7 @@ def test_the_lower_layers_load_nothing_above_them(package):
 #: processes, killed when a campaign is interrupted) and a new instance of the same class
 PRIVATE_READS_OK = {
     ("uwcosim/core/process.py", "os._exit"), ("uwcosim/core/runguard.py", "os._exit"),
+    ("uwcosim/core/supervise.py", "os._exit"),
     ("uwcosim/cli.py", "parser._actions"), ("uwcosim/cli.py", "super()._get_help_string"),
     ("uwcosim/cli.py", "argparse._SubParsersAction"),
     ("uwcosim/cli.py", "argparse._VersionAction"),

@@ -61,12 +61,14 @@ def _print_result(result) -> None:
 
 def _cmd_run(args) -> int:
     from uwcosim.api import run_scenario
+    from uwcosim.core.supervise import announce
     from uwcosim.runlog.rundir import prepare_out_dir
     from uwcosim.scenario import load_scenario
 
     loaded = load_scenario(args.scenario, args.set or [], overrides_base=Path.cwd())
     out = Path(args.out) if args.out else Path("runs") / loaded.path.stem
     prepare_out_dir(out, args.force)
+    announce(out)  # a supervised run: where its parent finishes it if an FMU ends the process
     _print_result(run_scenario(loaded, out, seed=args.seed, figures=not args.no_figures))
     return 0
 
@@ -527,8 +529,32 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    from uwcosim.core.runguard import install_cli_handlers, signal_name
+def _supervised(args) -> int:
+    """``run`` in a child process whose death in an FMU call is reported (exit 3)."""
+    from uwcosim.core.supervise import Death, supervise
+
+    result = supervise(lambda: _dispatch(args))
+    if not isinstance(result, Death):
+        return result
+    from uwcosim.core.runguard import signal_name
+
+    if result.forwarded is not None and result.call is None:  # stopped before any FMU ran
+        status, code = "interrupted", 128 + result.forwarded
+        message = f"interrupted by {signal_name(result.forwarded)}"
+    else:
+        status, code, message = "failed", 3, result.message()
+    if result.out_dir is not None:
+        from uwcosim.run.aftermath import finish_dead_run
+
+        message = finish_dead_run(result.out_dir, message, status)
+    print(f"uwcosim: error: {message}", file=sys.stderr)
+    return code
+
+
+def main(argv: list[str] | None = None, supervise: bool | None = None) -> int:
+    """The command line. ``supervise`` (default: when called as the ``uwcosim`` command,
+    ``argv`` None): ``run`` in a child process (:mod:`uwcosim.core.supervise`)."""
+    from uwcosim.core.runguard import install_cli_handlers
 
     args = build_parser().parse_args(argv)
     level = max(logging.DEBUG, min(logging.WARNING + 10 * (args.quiet - args.verbose),
@@ -536,6 +562,14 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(format="%(levelname)s %(name)s: %(message)s")
     logging.getLogger().setLevel(level)
     install_cli_handlers()
+    if args.func is _cmd_run and (argv is None if supervise is None else supervise):
+        return _supervised(args)
+    return _dispatch(args)
+
+
+def _dispatch(args) -> int:
+    from uwcosim.core.runguard import signal_name
+
     try:
         return int(args.func(args) or 0)
     except UwcosimError as exc:

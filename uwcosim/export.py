@@ -8,6 +8,9 @@ MAT (version 5): ``data`` (steps x columns, booleans as 0/1), ``columns`` (the c
 cell array), ``log`` (a struct with one field per column: the name with every character that is
 not a letter, digit or underscore replaced by ``_``, shortened to MATLAB's 63 characters and made
 unique with a numeric suffix) and ``metadata`` (the log's ``uwcosim`` metadata as JSON text).
+
+A log whose writer was killed (no Parquet footer) is exported from its journal
+(``log.parquet.journal``: every finished row group), as ``report`` and ``regress`` read it.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from uwcosim.core.errors import UwcosimError
+from uwcosim.runlog.parquet import journal_path, read_journal
 
 MATLAB_NAME_MAX = 63
 
@@ -37,6 +41,8 @@ def _read(run: str | Path):
     try:
         return path, pq.read_table(path)
     except Exception as exc:  # noqa: BLE001 - pyarrow raises several types for bad files
+        if journal_path(path).is_file():  # the run was killed before the footer: as read_log
+            return path, read_journal(journal_path(path))
         raise UwcosimError(f"{path}: not a readable Parquet run log ({exc})") from None
 
 

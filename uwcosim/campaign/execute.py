@@ -6,7 +6,9 @@ not valid JSON is taken as not done and run again). A failed run is recorded wit
 and the campaign goes on; its run directory is kept in ``failed/<variant>/run_NNNNN``.
 
 Pool workers die with the campaign (``prctl`` parent-death signal) and ignore SIGINT, SIGTERM
-and SIGHUP (the campaign process decides); an interrupted campaign kills them.
+and SIGHUP (the campaign process decides); an interrupted campaign kills them. Their temporary
+files (``uwcosim_run_*`` run folders, unzipped FMUs) are in a folder of the campaign's,
+removed when the pool ends, however it ends.
 """
 
 from __future__ import annotations
@@ -117,10 +119,15 @@ def _kept_failed(error: str, tmp: str | None, task: Task) -> str:
     return error.replace(str(Path(tmp)), str(dest))
 
 
-def _worker_init(parent: int) -> None:
+def _worker_init(parent: int, tmp: str | None = None) -> None:
     """Pool worker: die with the campaign, leave signals to it; an estimator stopped in a run
-    is in its record, not a line on the campaign's terminal."""
+    is in its record, not a line on the campaign's terminal; its temporary files in ``tmp``
+    (the campaign's folder, removed by the campaign even when the worker is killed)."""
     import signal
+
+    if tmp is not None:
+        tempfile.tempdir = tmp
+        os.environ["TMPDIR"] = tmp
 
     logging.getLogger("uwcosim.run.bank").addHandler(logging.NullHandler())
 
@@ -312,27 +319,36 @@ def _iterate(tasks: list[Task], workers: int, scheduler: str | None) -> Iterable
         # one BLAS/OpenMP thread per worker process: K processes on K cores, no oversubscription
         for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ.setdefault(var, "1")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
-                                 initializer=_worker_init, initargs=(os.getpid(),)) as ex:
-            futures = {ex.submit(execute_run, t): t for t in tasks}
-            try:
-                for f in as_completed(futures):
-                    try:
-                        record = f.result()
-                    except BrokenProcessPool:
-                        t = futures[f]
-                        raise UwcosimError(
-                            f"a campaign worker process died during run {t.run} of variant "
-                            f"{t.variant!r} (crashed FMU, watchdog, or killed); finished runs "
-                            f"are kept, --resume continues") from None
-                    yield futures[f], record
-            except BaseException:
-                # in-flight runs are abandoned (not recorded: --resume runs them again). The
-                # pool then fails every pending future itself (cancelling them first races
-                # with that in Python 3.11: InvalidStateError in the pool's thread)
-                for proc in list((getattr(ex, "_processes", None) or {}).values()):
-                    proc.kill()
-                raise
+        # the workers' temporary files (runs, unzipped FMUs): a killed worker leaves them
+        tmp = tempfile.mkdtemp(prefix="uwcosim_campaign_")
+        try:
+            yield from _pool(tasks, workers, mp, tmp)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _pool(tasks: list[Task], workers: int, mp, tmp: str) -> Iterable:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                             initializer=_worker_init, initargs=(os.getpid(), tmp)) as ex:
+        futures = {ex.submit(execute_run, t): t for t in tasks}
+        try:
+            for f in as_completed(futures):
+                try:
+                    record = f.result()
+                except BrokenProcessPool:
+                    t = futures[f]
+                    raise UwcosimError(
+                        f"a campaign worker process died during run {t.run} of variant "
+                        f"{t.variant!r} (crashed FMU, watchdog, or killed); finished runs "
+                        f"are kept, --resume continues") from None
+                yield futures[f], record
+        except BaseException:
+            # in-flight runs are abandoned (not recorded: --resume runs them again). The
+            # pool then fails every pending future itself (cancelling them first races
+            # with that in Python 3.11: InvalidStateError in the pool's thread)
+            for proc in list((getattr(ex, "_processes", None) or {}).values()):
+                proc.kill()
+            raise
 
 
 def _dask(tasks: list[Task], scheduler: str) -> Iterable:

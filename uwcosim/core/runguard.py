@@ -15,9 +15,12 @@ in the main thread):
   (stuck in an FMU call), the watcher does the same finalization (the log writer is
   lock-protected), prints the one-line message and ends the process with ``os._exit``
   (exit status 128 + signal: 130, 143, 129). A second Ctrl-C does not abort the finalization;
-- the same watcher enforces ``run.fmu_timeout_s``: an FMU call (instantiate, doStep) of any FMU,
-  in this process or in a worker, that lasts longer ends the run as ``failed`` with the log
-  kept and exit status 3 (a C call cannot be abandoned, so the process ends).
+- the same watcher enforces ``run.fmu_timeout_s``: an FMU call of any FMU (every call into its
+  library: instantiate, enter/exit initialization, set, get, doStep, event update, reset,
+  terminate, free; the master's record ``busy`` of a step or an algebraic loop, else the
+  adapters' record :mod:`uwcosim.core.fmucall`), in this process or in a worker, that lasts
+  longer ends the run as ``failed`` with the log kept and exit status 3 (a C call cannot be
+  abandoned, so the process ends).
 
 Before the process ends so, the workers are killed and the run's scratch folders (unzipped
 FMUs, extracted SSP members: :mod:`uwcosim.core.scratch`) removed.
@@ -37,7 +40,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from uwcosim.core import process, scratch
+from uwcosim.core import fmucall, process, scratch, supervise
 from uwcosim.core.errors import RunInterrupted
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -197,7 +200,7 @@ class RunGuard:
                     self._exit(f"interrupted by {name} (the run did not end in {HARD_S:g} s)",
                                self.exit_code())
                 continue
-            busy = getattr(self.master, "busy", None)
+            busy = getattr(self.master, "busy", None) or fmucall.current()
             if self.fmu_timeout_s and busy is not None and now - busy[3] > self.fmu_timeout_s:
                 fmu, what, t, _ = busy
                 self._emergency("failed", f"FMU '{fmu}' did not return from {what} within "
@@ -222,6 +225,7 @@ class RunGuard:
         try:
             print(f"uwcosim: error: {message}", file=sys.stderr, flush=True)
         finally:
+            supervise.done(code)  # the run chose its exit status (a supervised child)
             os._exit(code)
 
 

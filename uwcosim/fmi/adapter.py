@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 
 import numpy as np
 
-from uwcosim.core import scratch
+from uwcosim.core import fmucall, scratch
 from uwcosim.core.errors import FMUError, ScenarioError
 from uwcosim.fmi.archive import (
     binary_problems,
@@ -45,7 +45,11 @@ from uwcosim.fmi.features import interfaces as fmu_interfaces
 from uwcosim.fmi.features import missing_features
 from uwcosim.fmi.instance import Instance, status_label
 from uwcosim.fmi.solvers import ModelExchange
-from uwcosim.fmi.structure import feedthrough, provides_directional_derivatives
+from uwcosim.fmi.structure import (
+    duplicate_references,
+    feedthrough,
+    provides_directional_derivatives,
+)
 from uwcosim.fmi.varmap import VariableMap, resolve_map
 from uwcosim.fmi.vartypes import (
     FLOAT64,
@@ -57,6 +61,12 @@ from uwcosim.fmi.vartypes import (
 )
 
 __all__ = ["Binding", "FMUAdapter", "read_description", "sha256_file"]
+
+# the calls of :mod:`uwcosim.core.fmucall`, by index
+(_INSTANTIATE, _EXIT_INIT, _SET, _GET, _DO_STEP, _EVENT, _RESET, _TERMINATE, _FREE) = (
+    fmucall.CALLS.index(c) for c in ("instantiate", "exit initialization", "set inputs",
+                                     "get outputs", "doStep", "event update", "reset",
+                                     "terminate", "free instance"))
 
 
 def read_description(path: Path, interface: str | None = None) -> ModelDescription:
@@ -79,6 +89,7 @@ class FMUAdapter:
         unzip_dir: str | Path | None = None,
     ) -> None:
         self.name = name
+        self._ci = fmucall.fmu_index(name)  # this FMU in the record of the call in progress
         self.path = Path(path)
         self.md = open_archive(self.path)
         self.sha256 = sha256_file(self.path) if self.path.is_file() else ""
@@ -99,6 +110,15 @@ class FMUAdapter:
         missing = missing_features(self.md)
         if missing:
             raise FMUError(f"{self.path}: FMU '{name}' cannot be run: {missing[0]}")
+        token = self.md.instantiationToken if self.fmi3 else self.md.guid
+        if not token:  # fmpy would pass None to the library's instantiate function
+            raise FMUError(f"{self.path}: FMU '{name}' cannot be run: its modelDescription.xml "
+                           f"has no {'instantiationToken' if self.fmi3 else 'guid'} (FMI "
+                           f"{self.md.fmiVersion} requires one)")
+        clashes = duplicate_references(self.md)
+        if clashes:  # one value for two variables: silently wrong inputs or outputs
+            raise FMUError(f"{self.path}: FMU '{name}' cannot be run: {clashes[0]} (an FMU's "
+                           f"inputs and outputs need value references of their own)")
         kind_ = self.md.coSimulation if interface == "cs" else self.md.modelExchange
         if kind_ is None:
             raise FMUError(
@@ -226,9 +246,16 @@ class FMUAdapter:
         ``hold``: stay in initialization mode (inputs may be set and outputs read, e.g. to
         solve an algebraic loop) until :meth:`exit_initialization`.
         """
+        values = self.check_values({**parameters, **start})
+        fmucall.begin(self._ci, _INSTANTIATE, t0)
+        try:
+            self._instantiate(values, t0, t_stop, hold)
+        finally:
+            fmucall.end()
+
+    def _instantiate(self, values: dict, t0: float, t_stop: float, hold: bool) -> None:
         from fmpy import fmi2, fmi3  # lazy: fmpy (0.1 s) only once an FMU is instantiated
 
-        values = self.check_values({**parameters, **start})
         self.terminated = None
         inst = self._inst
         if inst is not None:
@@ -276,7 +303,11 @@ class FMUAdapter:
         if self._held is None:
             return
         (t0, t_stop), self._held = self._held, None
-        self._inst.guard("setup", lambda: self._exit_initialization(t0, t_stop), t0)
+        fmucall.begin(self._ci, _EXIT_INIT, t0)
+        try:
+            self._inst.guard("setup", lambda: self._exit_initialization(t0, t_stop), t0)
+        finally:
+            fmucall.end()
 
     @property
     def instance(self) -> Instance | None:
@@ -386,6 +417,13 @@ class FMUAdapter:
         """Set the inputs that may change in continuous-time mode (all of them for CS)."""
         if not b.n:
             return
+        fmucall.begin(self._ci, _SET, t)
+        try:
+            self._set_continuous(b, t)
+        finally:
+            fmucall.end()
+
+    def _set_continuous(self, b: Binding, t: float) -> None:
         if b.groups:
             self._set_groups(b, b.continuous_groups, t)
             return
@@ -404,6 +442,13 @@ class FMUAdapter:
         discrete input changed (event mode)."""
         if not b.n:
             return False
+        fmucall.begin(self._ci, _SET, t)
+        try:
+            return self._set_inputs_now(b, t)
+        finally:
+            fmucall.end()
+
+    def _set_inputs_now(self, b: Binding, t: float) -> bool:
         if not b.groups:
             self.set_continuous(b, t)
         elif self._me is None:
@@ -437,14 +482,23 @@ class FMUAdapter:
         are set in event mode (with the event iteration that follows)."""
         self.set_continuous(b, t)
         if b.groups and self._me is not None and b.discrete_groups:
+            fmucall.begin(self._ci, _EVENT, t)
             try:
                 self._me.set_discrete(b, t)
             finally:
+                fmucall.end()
                 self.terminated = self._me.terminated
 
     def get_outputs(self, b: Binding, t: float) -> np.ndarray:
         if not b.n:
             return b.view
+        fmucall.begin(self._ci, _GET, t)
+        try:
+            return self._get_outputs(b, t)
+        finally:
+            fmucall.end()
+
+    def _get_outputs(self, b: Binding, t: float) -> np.ndarray:
         if b.groups:
             for g in b.groups:
                 if self.fmi3:
@@ -467,6 +521,13 @@ class FMUAdapter:
         when the FMU asked to stop: see :attr:`terminated`). Inputs are in ``inputs.view``
         (held over the step); for model exchange ``input_fn(t, view)`` may refresh the
         continuous ones at the integrator's stage times."""
+        fmucall.begin(self._ci, _DO_STEP, t)
+        try:
+            return self._step(t, h, inputs, input_fn)
+        finally:
+            fmucall.end()
+
+    def _step(self, t: float, h: float, inputs: Binding, input_fn: Callable | None) -> float:
         if self.terminated is not None:
             raise FMUError(f"FMU '{self.name}' ({self.path.name}): doStep at t={t:g} after the "
                            f"FMU asked to stop at t={self.terminated[0]:g}")
@@ -554,7 +615,11 @@ class FMUAdapter:
     # -- end ----------------------------------------------------------------------------------
     def reset(self) -> None:
         if self._inst is not None:
-            self._inst.guard("reset", self._inst.fmu.reset, 0.0)
+            fmucall.begin(self._ci, _RESET, 0.0)
+            try:
+                self._inst.guard("reset", self._inst.fmu.reset, 0.0)
+            finally:
+                fmucall.end()
 
     def close(self) -> None:
         self._closed_solver = self.solver_used  # kept: the integrator this instance used
@@ -562,14 +627,20 @@ class FMUAdapter:
         self._me = None
         fmu = None if inst is None else inst.fmu
         if fmu is not None:
+            fmucall.begin(self._ci, _TERMINATE, 0.0)
             try:
                 fmu.terminate()
             except Exception:  # noqa: BLE001 - terminate after an error may fail; free anyway
                 pass
+            finally:
+                fmucall.end()
+            fmucall.begin(self._ci, _FREE, 0.0)
             try:
                 fmu.freeInstance()
             except Exception:  # noqa: BLE001
                 pass
+            finally:
+                fmucall.end()
         if self._own_unzip is not None:
             d, self._own_unzip = self._own_unzip, None
             try:

@@ -3,15 +3,18 @@
 :func:`archive_problems` finds what makes a file unusable as an FMU before anything is loaded:
 missing file, not a zip archive, a member whose compressed data is corrupt (bad CRC or bad
 deflate stream: every member is read once), a member name that is absolute or climbs out of
-the folder with ``..`` (it would be extracted outside the FMU's folder), no
-``modelDescription.xml``. :func:`binary_problems` checks the shared library of this platform
+the folder with ``..`` (it would be extracted outside the FMU's folder), an unpacked size
+(the members' sizes in the archive's directory, checked before anything is inflated: a zip
+bomb) above :data:`MAX_UNPACKED_MB` MiB (environment variable ``UWCOSIM_FMU_MAX_UNPACKED_MB``),
+no ``modelDescription.xml``. :func:`binary_problems` checks the shared library of this platform
 for each interface (FMI 2 ``binaries/linux64``, FMI 3 ``binaries/x86_64-linux``).
 :func:`open_archive` checks the archive and reads its model description, :func:`open_description`
 checks the binaries too; both raise one-line :class:`~uwcosim.core.errors.FMUError` s.
-:func:`unzip` extracts a checked archive. :func:`library_problems`
-loads each binary in a separate process (a library that cannot be loaded, or crashes when
-loaded, is reported, not suffered) and checks that it exports the FMI functions its interfaces
-need (``uwcosim fmu check``). A missing FMU of the project's own
+:func:`unzip` extracts what a run needs of a checked archive: ``modelDescription.xml``, this
+platform's binaries and ``resources/`` (not the documentation, sources or other platforms).
+:func:`library_problems` loads each binary in a separate process (a library that cannot be
+loaded, or crashes when loaded, is reported, not suffered) and checks that it exports the FMI
+functions its interfaces need (``uwcosim fmu check``). A missing FMU of the project's own
 (:func:`uwcosim.core.paths.is_project_fmu`) is reported with the hint to build it.
 
 A folder that holds an unzipped FMU (``modelDescription.xml`` at its top) is accepted too.
@@ -20,6 +23,7 @@ A folder that holds an unzipped FMU (``modelDescription.xml`` at its top) is acc
 from __future__ import annotations
 
 import hashlib
+import os
 import subprocess
 import sys
 import zipfile
@@ -31,10 +35,14 @@ if TYPE_CHECKING:
     from fmpy.model_description import ModelDescription
 
 from uwcosim.core import scratch
-from uwcosim.core.errors import FMUError
+from uwcosim.core.errors import FMUError, ScenarioError
 from uwcosim.core.paths import is_project_fmu
 
 INTERFACE_NAMES = {"cs": "co-simulation", "me": "model exchange"}
+MIB = 1 << 20
+#: the default limit of an FMU archive's unpacked size (MiB), and the variable that sets it
+MAX_UNPACKED_MB = 512
+MAX_UNPACKED_ENV = "UWCOSIM_FMU_MAX_UNPACKED_MB"
 #: what "FMU not found" adds for one of the project's own FMUs (:func:`is_project_fmu`)
 BUILD_HINT = " (build the project's FMUs with 'uwcosim fmu build')"
 
@@ -46,6 +54,22 @@ def sha256_file(path: Path) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+def max_unpacked_bytes() -> int:
+    """The limit of an FMU archive's unpacked size in bytes: :data:`MAX_UNPACKED_MB` MiB, or
+    the environment variable :data:`MAX_UNPACKED_ENV` (MiB)."""
+    text = os.environ.get(MAX_UNPACKED_ENV, "").strip()
+    if not text:
+        return MAX_UNPACKED_MB * MIB
+    try:
+        mb = float(text)
+    except ValueError:
+        mb = float("nan")
+    if not mb > 0 or mb == float("inf"):
+        raise ScenarioError(f"{MAX_UNPACKED_ENV}={text!r}: expected a positive number of MiB "
+                            f"(the limit of an FMU's unpacked size)")
+    return int(mb * MIB)
 
 
 def _bad_member_name(name: str) -> bool:
@@ -78,6 +102,11 @@ def archive_problems(path: str | Path) -> list[str]:
             if bad:
                 return [f"{path}: unsafe FMU archive (member name {bad[0]!r} is absolute or "
                         f"contains '..')"]
+            cap = max_unpacked_bytes()
+            size = sum(info.file_size for info in zf.infolist())
+            if size > cap:  # before anything is inflated (a zip bomb)
+                return [f"{path}: FMU archive unpacks to {size / MIB:.0f} MiB, more than the "
+                        f"limit of {cap / MIB:g} MiB ({MAX_UNPACKED_ENV})"]
             for info in zf.infolist():  # inflate every member and check its CRC
                 try:
                     with zf.open(info) as fh:
@@ -210,9 +239,19 @@ def open_description(path: str | Path, interface: str | None = None) -> ModelDes
     return md
 
 
+def needed_member(name: str) -> bool:
+    """True for a member a run of this platform uses: ``modelDescription.xml``, this
+    platform's binaries (FMI 2 and FMI 3 names), ``resources/``."""
+    import fmpy  # lazy: as in read_model
+
+    return name == "modelDescription.xml" or name.startswith("resources/") or any(
+        name.startswith(f"binaries/{p}/") for p in (fmpy.platform, fmpy.platform_tuple))
+
+
 def unzip(path: str | Path, into: str | Path) -> Path:
-    """Extract the (checked) archive ``path`` into the folder ``into`` unless it already holds
-    it (``modelDescription.xml`` present); a folder FMU is used where it is."""
+    """Extract what a run needs (:func:`needed_member`) of the (checked) archive ``path`` into
+    the folder ``into`` unless it already holds it (``modelDescription.xml`` present); a folder
+    FMU is used where it is."""
     path, into = Path(path), Path(into)
     if path.is_dir():
         return path
@@ -221,7 +260,7 @@ def unzip(path: str | Path, into: str | Path) -> Path:
     into.mkdir(parents=True, exist_ok=True)
     try:
         with zipfile.ZipFile(path) as zf:
-            zf.extractall(into)
+            zf.extractall(into, [n for n in zf.namelist() if needed_member(n)])
     except (zipfile.BadZipFile, zlib.error, OSError, EOFError) as exc:
         raise FMUError(f"{path}: cannot extract the FMU archive into {into} ({exc})") from None
     return into

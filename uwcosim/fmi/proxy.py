@@ -38,7 +38,7 @@ if TYPE_CHECKING:
 
 import numpy as np
 
-from uwcosim.core import process, runguard, scratch
+from uwcosim.core import fmucall, process, runguard, scratch
 from uwcosim.core.errors import FMUError, RunInterrupted, ScenarioError
 from uwcosim.core.paths import PACKAGE_DIR
 from uwcosim.fmi.adapter import FMUAdapter
@@ -50,6 +50,9 @@ STARTUP_S = 60.0
 #: an answer is awaited in slices of this many seconds (a stop request is seen between them)
 _SLICE_S = 0.05
 _ERRORS = {"FMUError": FMUError, "ScenarioError": ScenarioError}
+#: a request's name as a call of :mod:`uwcosim.core.fmucall` (the others: instantiate)
+_CALL = {c: fmucall.CALLS.index(c) for c in fmucall.CALLS} | {
+    "start": fmucall.CALLS.index("load library")}
 
 
 class ProxyAdapter:
@@ -64,6 +67,7 @@ class ProxyAdapter:
             self._scratch = scratch.Scratch(self, "uwcosim_fmu_")
             unzip_dir = self._scratch.path
         self.name, self.path, self.md = name, self.local.path, self.local.md
+        self._ci = fmucall.fmu_index(name)
         self.sha256, self.fmi3 = self.local.sha256, self.local.fmi3
         self.interface, self.nx = interface, self.local.nx
         self.messages = self.local.messages
@@ -148,6 +152,13 @@ class ProxyAdapter:
         self._call("start", 0.0, ("open", self._args, self._map), limit=STARTUP_S)
 
     def _call(self, what: str, t: float, request: tuple, limit: float | None = None):
+        fmucall.begin(self._ci, _CALL.get(what, 0), t)  # timed by the run-wide watchdog too
+        try:
+            return self._round_trip(what, t, request, limit)
+        finally:
+            fmucall.end()
+
+    def _round_trip(self, what: str, t: float, request: tuple, limit: float | None):
         if self._proc is None:
             raise FMUError(f"FMU '{self.name}' ({self.path.name}): worker process not running "
                            f"({what} at t={t:g})")

@@ -1,5 +1,5 @@
 """The model structure of one FMU: which outputs depend directly on which inputs, and whether it
-gives their partial derivatives.
+gives their partial derivatives; which of its inputs and outputs share a value reference.
 
 FMI's ``ModelStructure`` lists, for each output, the inputs it depends on directly
 (``dependencies``); an output without a dependency list depends on every input. The master's
@@ -54,3 +54,29 @@ def provides_directional_derivatives(md: ModelDescription, path: str | Path,
         return False
     elem = root.find("CoSimulation" if interface == "cs" else "ModelExchange")
     return elem is not None and elem.get("providesDirectionalDerivatives") == "true"
+
+
+def duplicate_references(md: ModelDescription) -> list[str]:
+    """Inputs and outputs that share a value reference where the FMU cannot tell them apart.
+
+    FMI 3 value references are unique in an FMU (aliases are ``<Alias>`` elements, not
+    variables): two inputs or outputs with one value reference would read and write one
+    value (``vx`` set, then ``vy`` overwrites it). FMI 2 numbers each base type on its own and
+    allows aliases (variables of one type sharing a reference are one value); two *inputs* of
+    one type sharing a reference are still one value driven twice. One line per clash, e.g.
+    ``inputs 'vx' and 'vy' share value reference 3``.
+    """
+    fmi3 = md.fmiVersion.startswith("3")
+    seen: dict[tuple, object] = {}
+    out = []
+    for v in md.modelVariables:
+        if v.causality not in ("input", "output") or (not fmi3 and v.causality != "input"):
+            continue
+        key = (v.valueReference,) if fmi3 else (v.type, v.valueReference)
+        first = seen.setdefault(key, v)
+        if first is not v:
+            kinds = "inputs" if first.causality == v.causality == "input" else (
+                "outputs" if first.causality == v.causality else "input and output")
+            out.append(f"{kinds} {first.name!r} and {v.name!r} share value reference "
+                       f"{v.valueReference}")
+    return out

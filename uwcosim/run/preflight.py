@@ -9,11 +9,12 @@ the file, the key and what was expected:
 2. :func:`check_fmus`: the scenario against the FMUs' model descriptions (variables,
    causalities, types, shapes and integer ranges of connections, start values and
    parameters, algebraic loops; the master's own checks, run in its collecting mode,
-   :class:`uwcosim.master.master.Master` ``check_only``), ``model.truth`` outputs, and the
-   ``[log] signals`` patterns that match no signal;
-3. :func:`check_filters`: the map is read, the filters' model built and every estimator
-   constructed at the initial state (what the constructors check: measurement names, grid
-   memory, ...).
+   :class:`uwcosim.master.master.Master` ``check_only``; the FMUs' own checks at load, e.g.
+   duplicate value references, a missing instantiation token), ``model.truth`` outputs, the
+   ``[log] signals`` patterns that match no signal and the ``map.fmu_parameter`` variable;
+3. :func:`check_filters`: the map is read, the vehicle's start position checked against it
+   (:func:`start_position_problem`), the filters' model built and every estimator constructed
+   at the initial state (what the constructors check: measurement names, grid memory, ...).
 
 A replay scenario (``[replay]``) has no FMUs: its second level is :func:`check_replay`, the
 recorded file read and checked (columns, units, time stamps) as a run reads it.
@@ -30,10 +31,12 @@ from pathlib import Path
 
 import numpy as np
 
-from uwcosim.core.errors import UwcosimError
+from uwcosim.core.errors import ScenarioError, UwcosimError
 from uwcosim.core.plugins import describe_error
 from uwcosim.filters.base import build
+from uwcosim.fmi.archive import open_archive
 from uwcosim.master.master import Master
+from uwcosim.models.terrain import Bathymetry
 from uwcosim.run.factory import build_model, scenario_map
 from uwcosim.run.recorder import pattern_problems
 from uwcosim.run.replay import replay_source
@@ -78,9 +81,64 @@ def check_fmus(loaded: LoadedScenario) -> list[Problem]:
                     problems.append(Problem.of(exc))
         problems += [Problem.of(e) for e in
                      pattern_problems(master, loaded.spec.log.signals, str(loaded.path))]
+        problem = map_parameter_problem(loaded, master)
+        if problem is not None:
+            problems.append(Problem.of(problem))
         return problems
     finally:
         master.close()
+
+
+def map_parameter_problem(loaded: LoadedScenario, master: Master) -> ScenarioError | None:
+    """``map.fmu_parameter`` naming a variable its FMU does not have (a run sets the map file
+    there at initialization), named as that key."""
+    spec = loaded.spec
+    if spec.map is None or spec.map.kind is None or not spec.map.fmu_parameter:
+        return None
+    fmu, _, par = spec.map.fmu_parameter.partition(".")
+    adapter = master.adapters.get(fmu)
+    if adapter is None or par in adapter.fmu_variables or par in adapter.variables:
+        return None  # another FMU: the scenario's cross-references say so
+    return ScenarioError(f"{loaded.path}: key 'map.fmu_parameter': FMU '{fmu}' has no variable "
+                         f"{par!r} (expected the String parameter that takes the map file, "
+                         f"e.g. 'sounder.mapFile')")
+
+
+def start_position_problem(loaded: LoadedScenario, bathy: Bathymetry | None) -> Problem | None:
+    """The vehicle's start position outside the map: the start values (the scenario's, else
+    the FMU's) of what drives the ``x`` and ``y`` inputs of the map's FMU; the run would fail
+    at its first step."""
+    spec = loaded.spec
+    if bathy is None or spec.map is None or not spec.map.fmu_parameter:
+        return None
+    fmu = spec.map.fmu_parameter.partition(".")[0]
+    drivers = {dst: src for src, dst in spec.connections}
+    position, source = [], None
+    for axis in ("x", "y"):
+        src = drivers.get(f"{fmu}.{axis}")
+        name, _, var = (src or "").partition(".")
+        f = spec.fmus.get(name)
+        if f is None or f.map is not None:  # not an FMU, or a variable map's role
+            return None
+        value = f.start.get(var)
+        if value is None:
+            try:
+                md = open_archive(loaded.resolve(f.path))
+            except UwcosimError:
+                return None
+            value = next((v.start for v in md.modelVariables if v.name == var), None)
+        try:
+            position.append(float(value))
+        except (TypeError, ValueError):
+            return None
+        source = name
+    x, y = position
+    if bool(bathy.inside(np.asarray(x), np.asarray(y))):
+        return None
+    xmin, xmax, ymin, ymax = bathy.extent
+    return Problem(f"{loaded.path}: key 'fmus.{source}.start': the vehicle starts at (x, y) = "
+                   f"({x:g}, {y:g}) m, outside the map (x in [{xmin:g}, {xmax:g}], y in "
+                   f"[{ymin:g}, {ymax:g}]): FMU '{fmu}' would fail at the start time", 3)
 
 
 def check_replay(loaded: LoadedScenario) -> list[Problem]:
@@ -100,11 +158,13 @@ def check_filters(loaded: LoadedScenario) -> list[Problem]:
     try:
         bathy = scenario_map(loaded)
         if not spec.estimators:
-            return []
+            problem = start_position_problem(loaded, bathy)
+            return [] if problem is None else [problem]
         model = build_model(loaded, bathy)
     except UwcosimError as exc:
         return [Problem.of(exc)]
-    out = []
+    problem = start_position_problem(loaded, bathy)
+    out = [] if problem is None else [problem]
     for name, es in spec.estimators.items():
         std = es.initial_std or (spec.estimation.initial_std if spec.estimation else None)
         P0 = np.diag(np.asarray(std if std else np.ones(model.nx), float) ** 2)

@@ -60,6 +60,7 @@ from uwcosim.run.density import DensitySnapshots
 from uwcosim.run.divergence import DivergenceCheck, default_bound
 from uwcosim.run.factory import build_model, scenario_map
 from uwcosim.run.geocolumns import GeoColumns
+from uwcosim.run.preflight import map_parameter_problem
 from uwcosim.run.provenance import user_code
 from uwcosim.run.recorder import LogRecorder, logged_signals, pattern_problems
 from uwcosim.run.replay import ReplaySource, replay_source
@@ -293,6 +294,9 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                 master.close()
             raise
     problems = pattern_problems(master, spec.log.signals, str(loaded.path))
+    if isinstance(master, Master) and overrides:  # the map file's parameter: its key named
+        problem = map_parameter_problem(loaded, master)
+        problems += [problem] if problem is not None else []
     if problems:  # a bad [log] signals pattern: a scenario error before anything runs
         if owner:
             master.close()
@@ -329,16 +333,18 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
 
     def finalize(status: str, message: str, code: int) -> str:
         """The signal watcher's finalization when the main thread is stuck in an FMU call."""
-        if status == "interrupted":
-            message = f"interrupted at t={last_time():g} by {message.rsplit(' ', 1)[-1]}"
-        message = kept(message)
         if logger is not None:
             # the steps the bank has not filtered yet: the main thread is stuck in an FMU
-            # call, not in the bank (if it is, their rows are written with NaN estimates)
+            # call, not in the bank (if it is, their rows are written with NaN estimates);
+            # first, so that the message names the log's last row
             if bank is not None and bank.busy:
                 recorder.flush()
             else:
                 _flush_steps(bank, recorder)
+        if status == "interrupted":
+            message = f"interrupted at t={last_time():g} by {message.rsplit(' ', 1)[-1]}"
+        message = kept(message)
+        if logger is not None:
             logger.close()
         try:
             finish(status, message)

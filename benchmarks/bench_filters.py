@@ -264,12 +264,19 @@ def particles_job(model, x0, terrain, n_particles):
 
         sd = np.sqrt(np.diag(model.R))
 
+        u0 = controls(0)
+        F0 = model.F(x0, u0, 1.0)
+
         class TAN(ssm.StateSpaceModel):
+            """``particles`` observes ``X_0``: ours observe after the first step, so ``X_0``
+            here is that step's exact Gaussian ``N(f(x0), F P0 F' + Q)``."""
+
             def PX0(self):
-                return dists.MvNormal(loc=x0, cov=np.diag(STD0**2))
+                return dists.MvNormal(loc=model.f(x0, u0, 1.0),
+                                      cov=F0 @ np.diag(STD0**2) @ F0.T + model.Q(x0, u0, 1.0))
 
             def PX(self, t, xp):
-                u = controls(t - 1)
+                u = controls(t)
                 return dists.MvNormal(loc=model.f_batch(xp, u, 1.0),
                                       cov=model.Q(None, u, 1.0))
 

@@ -137,3 +137,26 @@ def test_compiled_divergence_is_the_numpy_error(model, data, kind):
         assert messages[0] == messages[1] == "ekf prediction contains NaN or inf"
     else:  # LAPACK's factorization may pass the NaN on; the loops' stops at it
         assert all(m.endswith("contains NaN or inf") for m in messages)
+
+
+@needs_numba
+def test_compiled_kalman_filter_on_a_linear_model():
+    """``kf`` compiled on a linear model (its compiled form copies ``F``, ``Q``, ``B u``)."""
+    from uwcosim.models.linear import seed001_model
+
+    lin = seed001_model()
+    rng = np.random.default_rng(5)
+    zs = rng.standard_normal((200, lin.nz)) + np.linspace(0, 50, 200)[:, None]
+    zs[::7, 0] = np.nan  # a component lost now and then
+    out = []
+    for compiled in (False, True):
+        est = ESTIMATORS.get("kf")(lin, np.zeros(lin.nx), np.eye(lin.nx), compiled=compiled)
+        xs = []
+        for z in zs:
+            est.predict(np.zeros(lin.nu), 1.0)
+            est.update(z)
+            xs.append(est.x.copy())
+        out.append((np.array(xs), est.P.copy()))
+    assert est.workspace is not None
+    np.testing.assert_allclose(out[1][0], out[0][0], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(out[1][1], out[0][1], rtol=1e-12, atol=1e-15)

@@ -10,8 +10,8 @@ uses (no terrain lookup where the model offers ``h_rows``).
 
 ``compiled = true`` (every filter of this module and of :mod:`uwcosim.filters.sigma_point`)
 runs the same equations compiled on the model's compiled form
-(:mod:`uwcosim.filters.kalman_kernels`; the TAN model offers one): two compiled calls per
-step, equal to the numpy step to round-off but not bit for bit (BLAS groups the sums
+(:mod:`uwcosim.filters.kalman_kernels`; the TAN and linear models offer one): two compiled
+calls per step, equal to the numpy step to round-off but not bit for bit (BLAS groups the sums
 differently), hence off by default. With Numba off (``UWCOSIM_NUMBA=0``) the numpy step runs.
 The compiled step updates ``x`` and ``P`` in place (copy them to keep them).
 
@@ -41,7 +41,7 @@ from uwcosim.filters.settings import FilterSettings, Measurements, measurements_
 def compiled_field():
     """The ``compiled`` setting of the Kalman family (off: the numpy step)."""
     return Field(False, description="run the compiled step on the model's compiled form "
-                 "(the TAN model): equal to the numpy step to round-off, several times faster")
+                 "(TAN and linear models): equal to the numpy step to round-off, faster")
 
 
 class CompiledUpdate:

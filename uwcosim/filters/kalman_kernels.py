@@ -369,11 +369,13 @@ def compiled_workspace(est, model, extra: list[tuple] | None = None) -> Workspac
     """The workspace of a filter whose ``compiled`` setting is on (None: the numpy steps, also
     when Numba is off, :data:`uwcosim.core.jit.ENABLED`); a one-line ValueError when the model
     offers no compiled form."""
-    if not est.settings.compiled or not jit.ENABLED:
+    # a subclass's own Settings (a user's filter derived from ours) may not declare it
+    if not getattr(est.settings, "compiled", False) or not jit.ENABLED:
         return None
     w = workspace(model, extra)
     if w is None:
         raise ValueError(
-            f"estimator {est.kind}: compiled = true needs a model with a compiled form (the "
-            "TAN model without control noise, its map within the table limit); set it false")
+            f"estimator {est.kind}: compiled = true needs a model with a compiled form (a linear "
+            "model, or the TAN model without control noise and its map within the table "
+            "limit); set it false")
     return w

@@ -1,27 +1,41 @@
-"""Time per step of the filters on the TAN model (4 states, 3 measurements, synthetic map).
+"""Time per step of our filters and of FilterPy, Stone Soup and `particles` on one TAN problem.
 
-Compares our UKF with FilterPy's ``UnscentedKalmanFilter`` (same scaled sigma points
-alpha = 1, beta = 2, kappa = 0; ``Q`` set every step like ours) fed either the model's CasADi
-single-point functions (what a user plugs in) or our numpy per-point functions (which isolates
-the algorithm's own overhead), and times the bootstrap PF with 1000 particles against its goal of
-100 us per step. A step is ``predict`` + ``update`` + reading ``x`` and ``P``. Each filter runs
-the same simulated trajectory; the best median of ``--repeats`` runs is reported (the median,
-mean and 95th percentile of that run), so a noisy machine does not decide the ratios. The mean
-matters for work done once every few steps (the PF draws its process noise for 64 steps at once
-and resamples only when the ESS drops), which the median does not see.
+Every filter runs the same simulated truth and measurements of the TAN model (4 states, DVL
+velocities and the terrain depth over the synthetic map of seed 7), from the same initial
+estimate, with the same ``Q`` (set every step) and ``R``. A step is ``predict`` + ``update`` +
+reading the mean (and covariance where the library keeps one). Each row says what it runs:
 
-    .venv/bin/python benchmarks/bench_filters.py [--steps 2000] [--repeats 3] [--numba]
+- ``ours X`` / ``ours X compiled``: our filter, numpy step / ``compiled = true`` (the model's
+  compiled form, :mod:`uwcosim.filters.kalman_kernels`); ``ours pf-N`` the bootstrap PF.
+- ``filterpy ukf|ekf``, ``stonesoup ukf|ekf|pf-N``, ``particles bootstrap-N``: the library's
+  filter with our closed-form transition (``model.f``, ``model.F``) and either
+  ``terrain=model``: the model's own ``h``/``H``/``h_batch`` (our bicubic table lookups), or
+  ``terrain=spline``: ``scipy.interpolate.RectBivariateSpline`` of the map's depth grid, what a
+  user of those libraries would write (an interpolating cubic spline like ours, with other end
+  conditions: a slightly different terrain, hence a slightly different RMSE).
 
-``--numba`` imports Numba first, as a campaign with a grid filter (PFM-PSI, point mass) does:
-the TAN model's terrain lookups then run compiled (:mod:`uwcosim.models.terrain_kernels`, the
-same bits); without it they run in numpy, as in a scenario without grid filters.
+The same sigma-point rule everywhere (alpha = 1, beta = 2, kappa = 0); the EKFs update in the
+Joseph form (FilterPy, ours) or the standard form (Stone Soup). RMSE (position, second half of
+the run) is checked against our numpy filter of the same algorithm: to 1e-6 relative for the
+same algorithm and terrain, 5 % with the spline terrain, 50 % for the particle filters (other
+random streams, other resampling rules: one trajectory's Monte Carlo spread).
 
-FilterPy is a benchmark-only dependency (``pip install filterpy``).
+Each row's time is the best median of ``--repeats`` interleaved runs (with its mean and 95th
+percentile). Numba is loaded first unless ``--no-numba`` (then no compiled rows): the model's
+terrain lookups, which the ``terrain=model`` rows of the libraries call too, then run
+compiled (:mod:`uwcosim.models.terrain_kernels`, the same bits).
+
+    .venv/bin/python benchmarks/bench_filters.py [--steps 2000] [--repeats 3] [--particles 1000]
+
+FilterPy, Stone Soup and `particles` are benchmark-only (``pip install -e .[bench]``;
+``particles`` declares ``numpy<2``: ``pip install --no-deps particles``); a row whose library is
+missing is replaced by one line saying so.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import platform
 import sys
 import time
@@ -31,7 +45,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from uwcosim.filters import particle, sigma_point, variational  # noqa: E402, F401
+from uwcosim.filters import kalman, particle, sigma_point  # noqa: E402, F401
 from uwcosim.filters.base import ESTIMATORS  # noqa: E402
 from uwcosim.models.tan import tan_model  # noqa: E402
 from uwcosim.models.terrain import synthetic_bathymetry  # noqa: E402
@@ -39,6 +53,8 @@ from uwcosim.models.trajectory import simulate as simulate_model  # noqa: E402
 
 STD0 = np.array([30.0, 30.0, 0.05, 0.05])
 START = np.array([2000.0, 18000.0, 0.5, 0.0])
+GOALS = {"ours ekf compiled": 5.0, "ours ukf compiled": 8.0}  # median us per step
+RATIO_GOAL = 0.15  # ours compiled / FilterPy, same algorithm, terrain=model
 
 
 def controls(k: int) -> np.ndarray:
@@ -48,46 +64,238 @@ def controls(k: int) -> np.ndarray:
 def simulate(model, steps: int, seed: int = 1):
     rng = np.random.default_rng(seed)
     X, _, zs = simulate_model(model.symbolic, START, controls, steps, rng)
-    xs = X[1:]
-    return xs, zs, START + STD0 * rng.standard_normal(4)
+    return X[1:], zs, START + STD0 * rng.standard_normal(4)
 
 
-def time_ours(name, model, zs, x0, settings):
-    est = ESTIMATORS.get(name).from_settings(model, x0, np.diag(STD0**2), settings,
-                                             rng=np.random.default_rng(1))  # pf's stream
+class Terrain:
+    """The measurement function of one terrain choice: ``h(x)``, ``H(x)``, ``h_batch(X)``."""
+
+    def __init__(self, model, kind: str) -> None:
+        self.model, self.kind = model, kind
+        if kind == "spline":
+            from scipy.interpolate import RectBivariateSpline
+
+            b = model.terrain
+            ny, nx = b.shape
+            xs, ys = b.x0 + b.dx * np.arange(nx), b.y0 + b.dy * np.arange(ny)
+            self.spline = RectBivariateSpline(xs, ys, b.depth_grid.T, kx=3, ky=3, s=0)
+
+    def h(self, x):
+        if self.kind == "model":
+            return self.model.h(x)
+        return np.array([x[2], x[3], self.spline.ev(x[0], x[1])])
+
+    def H(self, x):
+        if self.kind == "model":
+            return self.model.H(x)
+        H = np.zeros((3, 4))
+        H[0, 2] = H[1, 3] = 1.0
+        H[2, 0] = self.spline.ev(x[0], x[1], dx=1)
+        H[2, 1] = self.spline.ev(x[0], x[1], dy=1)
+        return H
+
+    def h_batch(self, X):
+        """``(N, 3)`` for states as rows."""
+        if self.kind == "model":
+            return self.model.h_batch(X)
+        return np.column_stack([X[:, 2], X[:, 3], self.spline.ev(X[:, 0], X[:, 1])])
+
+
+def timed(zs, step):
+    """Run ``step(k, z) -> x`` over the measurements: (seconds per step, estimates)."""
     times = np.empty(len(zs))
     xs = np.empty((len(zs), 4))
     for k, z in enumerate(zs):
-        u = controls(k)
         t0 = time.perf_counter()
-        est.predict(u, 1.0)
-        est.update(z)
-        x, _ = est.x, est.P
+        x = step(k, z)
         times[k] = time.perf_counter() - t0
         xs[k] = x
     return times, xs
 
 
-def time_filterpy(model, zs, x0, fx1, hx1):
-    from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+def ours(name, model, x0, settings):
+    def job(zs):
+        est = ESTIMATORS.get(name).from_settings(model, x0, np.diag(STD0**2), settings,
+                                                 rng=np.random.default_rng(1))
 
-    points = MerweScaledSigmaPoints(4, alpha=1.0, beta=2.0, kappa=0.0)
-    ukf = UnscentedKalmanFilter(4, 3, 1.0, hx=hx1, fx=fx1, points=points)
-    ukf.x = x0.copy()
-    ukf.P = np.diag(STD0**2)
-    ukf.R = model.R.copy()
-    times = np.empty(len(zs))
-    xs = np.empty((len(zs), 4))
-    for k, z in enumerate(zs):
-        u = controls(k)
-        t0 = time.perf_counter()
-        ukf.Q = model.Q(ukf.x, u, 1.0)
-        ukf.predict(dt=1.0, u=u)
-        ukf.update(z)
-        x, _ = ukf.x, ukf.P
-        times[k] = time.perf_counter() - t0
-        xs[k] = x
-    return times, xs
+        def step(k, z):
+            est.predict(controls(k), 1.0)
+            est.update(z)
+            _ = est.P
+            return est.x
+
+        return timed(zs, step)
+    return job
+
+
+def filterpy_job(kind, model, x0, terrain):
+    def job(zs):
+        from filterpy.kalman import (
+            ExtendedKalmanFilter,
+            MerweScaledSigmaPoints,
+            UnscentedKalmanFilter,
+        )
+
+        if kind == "ukf":
+            points = MerweScaledSigmaPoints(4, alpha=1.0, beta=2.0, kappa=0.0)
+            f = UnscentedKalmanFilter(4, 3, 1.0, hx=terrain.h,
+                                      fx=lambda x, dt, u: model.f(x, u, dt), points=points)
+        else:
+            f = ExtendedKalmanFilter(4, 3)
+        f.x = x0.copy()
+        f.P = np.diag(STD0**2)
+        f.R = model.R.copy()
+
+        def step(k, z):
+            u = controls(k)
+            f.Q = model.Q(f.x, u, 1.0)
+            if kind == "ukf":
+                f.predict(dt=1.0, u=u)
+                f.update(z)
+            else:  # FilterPy's EKF predicts with a linear F x + B u: set x and P ourselves
+                F = model.F(f.x, u, 1.0)
+                f.x = model.f(f.x, u, 1.0)
+                f.P = F @ f.P @ F.T + f.Q
+                f.update(z, terrain.H, terrain.h)
+            _ = f.P
+            return f.x
+
+        return timed(zs, step)
+    return job
+
+
+def stonesoup_job(kind, model, x0, terrain, n_particles):
+    def job(zs):
+        from stonesoup.base import Property
+        from stonesoup.models.base import GaussianModel
+        from stonesoup.models.measurement.base import MeasurementModel
+        from stonesoup.models.transition.nonlinear import GaussianTransitionModel
+        from stonesoup.predictor.kalman import ExtendedKalmanPredictor, UnscentedKalmanPredictor
+        from stonesoup.predictor.particle import ParticlePredictor
+        from stonesoup.resampler.particle import ESSResampler
+        from stonesoup.types.array import StateVector, StateVectors
+        from stonesoup.types.detection import Detection
+        from stonesoup.types.hypothesis import SingleHypothesis
+        from stonesoup.types.state import GaussianState, ParticleState
+        from stonesoup.updater.kalman import ExtendedKalmanUpdater, UnscentedKalmanUpdater
+        from stonesoup.updater.particle import ParticleUpdater
+
+        class Transition(GaussianTransitionModel):
+            """Our closed-form TAN step; the control ``u`` comes as a keyword."""
+
+            ndim_state: int = Property(default=4)
+
+            @property
+            def ndim(self):
+                return 4
+
+            def function(self, state, noise=False, **kw):
+                X = np.asarray(state.state_vector, dtype=float)
+                out = model.f_batch(X.T, kw["u"], 1.0).T
+                if noise is True:
+                    noise = self.rvs(num_samples=X.shape[1], **kw)
+                elif noise is False or noise is None:
+                    noise = 0
+                return StateVectors(out + noise) if X.shape[1] > 1 else StateVector(out + noise)
+
+            def jacobian(self, state, **kw):
+                return model.F(None, kw["u"], 1.0)
+
+            def covar(self, **kw):
+                return model.Q(None, kw["u"], 1.0)
+
+        class Measurement(MeasurementModel, GaussianModel):
+            """DVL velocities and the terrain depth of ``terrain``."""
+
+            ndim_state: int = Property(default=4)
+            mapping: tuple = Property(default=(0, 1, 2, 3))
+
+            @property
+            def ndim_meas(self):
+                return 3
+
+            def function(self, state, noise=False, **kw):
+                X = np.asarray(state.state_vector, dtype=float)
+                Z = terrain.h_batch(X.T).T
+                return StateVectors(Z) if X.shape[1] > 1 else StateVector(Z)
+
+            def jacobian(self, state, **kw):
+                return terrain.H(np.asarray(state.state_vector, dtype=float)[:, 0])
+
+            def covar(self, **kw):
+                return model.R
+
+        trans, meas = Transition(), Measurement()
+        t0 = datetime.datetime(2026, 1, 1)
+        if kind == "pf":
+            np.random.seed(1)  # Stone Soup draws from numpy's global stream
+            P0 = np.diag(STD0**2)
+            parts = np.random.multivariate_normal(x0, P0, n_particles).T
+            state = ParticleState(StateVectors(parts), log_weight=np.full(
+                n_particles, -np.log(n_particles)), timestamp=t0)
+            predictor = ParticlePredictor(trans)
+            updater = ParticleUpdater(meas, resampler=ESSResampler())
+        else:
+            state = GaussianState(StateVector(x0), np.diag(STD0**2), timestamp=t0)
+            if kind == "ukf":
+                predictor = UnscentedKalmanPredictor(trans, alpha=1.0, beta=2.0, kappa=0.0)
+                updater = UnscentedKalmanUpdater(meas, alpha=1.0, beta=2.0, kappa=0.0)
+            else:
+                predictor, updater = ExtendedKalmanPredictor(trans), ExtendedKalmanUpdater(meas)
+        one = datetime.timedelta(seconds=1)
+
+        def step(k, z):
+            nonlocal state
+            t = t0 + (k + 1) * one
+            pred = predictor.predict(state, timestamp=t, u=tuple(controls(k)))  # hashable
+            det = Detection(StateVector(z), timestamp=t, measurement_model=meas)
+            state = updater.update(SingleHypothesis(pred, det))
+            return np.asarray(state.mean, dtype=float).ravel()
+
+        return timed(zs, step)
+    return job
+
+
+def particles_job(model, x0, terrain, n_particles):
+    def job(zs):
+        import particles
+        from particles import distributions as dists
+        from particles import state_space_models as ssm
+
+        sd = np.sqrt(np.diag(model.R))
+
+        u0 = controls(0)
+        F0 = model.F(x0, u0, 1.0)
+
+        class TAN(ssm.StateSpaceModel):
+            """``particles`` observes ``X_0``: ours observe after the first step, so ``X_0``
+            here is that step's exact Gaussian ``N(f(x0), F P0 F' + Q)``."""
+
+            def PX0(self):
+                return dists.MvNormal(loc=model.f(x0, u0, 1.0),
+                                      cov=F0 @ np.diag(STD0**2) @ F0.T + model.Q(x0, u0, 1.0))
+
+            def PX(self, t, xp):
+                u = controls(t)
+                return dists.MvNormal(loc=model.f_batch(xp, u, 1.0),
+                                      cov=model.Q(None, u, 1.0))
+
+            def PY(self, t, xp, x):
+                Z = terrain.h_batch(x)
+                return dists.IndepProd(*[dists.Normal(loc=Z[:, i], scale=sd[i])
+                                         for i in range(3)])
+
+        data = [np.asarray(z) for z in zs]
+        fk = ssm.Bootstrap(ssm=TAN(), data=data)
+        np.random.seed(1)  # particles draws from numpy's global stream
+        alg = particles.SMC(fk=fk, N=n_particles, resampling="systematic", ESSrmin=0.5)
+
+        def step(k, z):
+            next(alg)
+            return np.average(alg.X, axis=0, weights=alg.wgts.W)
+
+        return timed(zs, step)
+    return job
 
 
 def main() -> None:
@@ -95,63 +303,88 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--particles", type=int, default=1000)
-    ap.add_argument("--numba", action="store_true",
-                    help="import Numba first (compiled terrain lookups, as with grid filters)")
+    ap.add_argument("--no-numba", action="store_true",
+                    help="no compiled rows; the model's terrain lookups in numpy")
     args = ap.parse_args()
-    if args.numba:
+    compiled = not args.no_numba
+    if compiled:
         import numba  # noqa: F401
 
     terrain = synthetic_bathymetry(7)
     model = tan_model([0.01, 0.01, 1e-6, 1e-6], 0.05, 2.0, terrain)
-    fast = model  # the closed-form TAN model (its CasADi form is model.symbolic)
     truth, zs, x0 = simulate(model, args.steps)
+    N = args.particles
     print(f"TAN model, {args.steps} steps, best of {args.repeats} interleaved runs; "
           f"{platform.machine()}, Python {platform.python_version()}, numpy {np.__version__}; "
-          f"terrain lookups {'compiled' if 'numba' in sys.modules else 'numpy'}")
+          f"the model's terrain lookups {'compiled' if compiled else 'numpy'}")
 
-    jobs = {}
-    for name, settings in (("ukf", {}), ("ckf", {}), ("cukf", {}), ("ekf", {}),
-                           ("vbakf", {}), ("pf", {"n_particles": args.particles})):
-        label = f"ours {name}" + (f"-{args.particles}" if name == "pf" else "")
-        jobs[label] = lambda z, n=name, s=settings: time_ours(n, model, z, x0, s)
-    try:
-        import filterpy  # noqa: F401
-    except ImportError:
-        print("filterpy not installed (pip install filterpy): no comparison")
-    else:
-        jobs["filterpy ukf, casadi fx/hx"] = lambda z: time_filterpy(
-            model, z, x0, lambda x, dt, u: model.f(x, u, dt), model.h)
-        jobs["filterpy ukf, numpy fx/hx"] = lambda z: time_filterpy(
-            model, z, x0, lambda x, dt, u: fast.f(x, u, dt), fast.h)
+    jobs, reference = {}, {}
+    for name, settings in (("ekf", {}), ("ukf", {}), ("pf", {"n_particles": N})):
+        label = f"ours {name}" + (f"-{N}" if name == "pf" else "")
+        jobs[label] = ours(name, model, x0, settings)
+        reference[name] = label
+        if compiled and name != "pf":
+            jobs[label + " compiled"] = ours(name, model, x0, {**settings, "compiled": True})
+    missing = []
+    kinds = {"model": Terrain(model, "model"), "spline": Terrain(model, "spline")}
+    for lib, rows in (("filterpy", ("ekf", "ukf")), ("stonesoup", ("ekf", "ukf", "pf")),
+                      ("particles", ("pf",))):
+        try:
+            __import__(lib)
+        except ImportError:
+            missing.append(lib)
+            continue
+        for kind in rows:
+            for tname, t in kinds.items():
+                if lib == "filterpy":
+                    jobs[f"filterpy {kind}, terrain={tname}"] = filterpy_job(kind, model, x0, t)
+                elif lib == "stonesoup":
+                    n = f"-{N}" if kind == "pf" else ""
+                    jobs[f"stonesoup {kind}{n}, terrain={tname}"] = stonesoup_job(
+                        kind, model, x0, t, N)
+                else:
+                    jobs[f"particles bootstrap-{N}, terrain={tname}"] = particles_job(
+                        model, x0, t, N)
+    for lib in missing:
+        print(f"{lib} not installed (pip install -e .[bench]): its rows are left out")
 
-    for job in jobs.values():  # warm-up: caches, lazy imports, CPU clock
-        job(zs[:200])
+    for job in jobs.values():  # warm-up: caches, lazy imports, kernels, CPU clock
+        job(zs[:100])
     results: dict[str, tuple] = {}
     for _ in range(args.repeats):
         for label, job in jobs.items():
             times, xs = job(zs)
             med = float(np.median(times)) * 1e6
             if label not in results or med < results[label][0]:
-                results[label] = (med, float(np.percentile(times, 95)) * 1e6,
-                                  float(np.mean(times)) * 1e6, xs)
+                results[label] = (med, float(np.mean(times)) * 1e6,
+                                  float(np.percentile(times, 95)) * 1e6, xs)
 
     half = slice(args.steps // 2, None)
-    print(f"\n{'filter':30s} {'median us':>10s} {'mean us':>10s} {'p95 us':>10s} "
-          f"{'pos RMSE m (2nd half)':>22s}")
-    for label, (med, p95, mean, xs) in results.items():
-        e = (xs - truth)[half, :2]
-        rm = np.sqrt(np.mean(np.sum(e**2, axis=1)))
-        print(f"{label:30s} {med:10.1f} {mean:10.1f} {p95:10.1f} {rm:22.2f}")
+    rmse = {label: float(np.sqrt(np.mean(np.sum((r[3] - truth)[half, :2] ** 2, axis=1))))
+            for label, r in results.items()}
+    print(f"\n{'filter':36s} {'median us':>10s} {'mean us':>9s} {'p95 us':>9s} "
+          f"{'RMSE m':>8s}  RMSE vs ours (numpy)")
+    for label, (med, mean, p95, _) in results.items():
+        kind = "pf" if "pf" in label or "bootstrap" in label else label.split()[1][:3]
+        ref = rmse[reference[kind]]
+        tol = 0.5 if kind == "pf" else 0.05 if "spline" in label else 1e-6
+        rel = abs(rmse[label] - ref) / ref
+        check = "" if label == reference[kind] else \
+            f"{'equal' if rel <= tol else 'DIFFERS'} ({rel:.1e}, tol {tol:g})"
+        print(f"{label:36s} {med:10.1f} {mean:9.1f} {p95:9.1f} {rmse[label]:8.2f}  {check}")
+
     print("\ngoals")
-    ukf = results["ours ukf"][0]
-    for label, (med, *_) in results.items():
-        if label.startswith("filterpy"):
-            r = ukf / med
-            print(f"  ours ukf / {label:27s} = {r:6.3f}     (goal <= 0.333: "
-                  f"{'met' if r <= 1 / 3 else 'NOT met'})")
-    pf, _, pf_mean, _ = results[f"ours pf-{args.particles}"]
-    print(f"  ours pf-{args.particles} time per step {'':14s} = {pf:6.1f} us  (goal <= 100 us: "
-          f"{'met' if pf <= 100 else 'NOT met'}; mean {pf_mean:.1f} us)")
+    for label, goal in GOALS.items():
+        if label in results:
+            med = results[label][0]
+            print(f"  {label:28s} {med:6.1f} us/step  (goal <= {goal:g}: "
+                  f"{'met' if med <= goal else 'NOT met'})")
+    for kind in ("ekf", "ukf"):
+        ref = f"filterpy {kind}, terrain=model"
+        if f"ours {kind} compiled" in results and ref in results:
+            r = results[f"ours {kind} compiled"][0] / results[ref][0]
+            print(f"  ours {kind} compiled / {ref:26s} = {r:6.3f}  (goal <= {RATIO_GOAL}: "
+                  f"{'met' if r <= RATIO_GOAL else 'NOT met'})")
 
 
 if __name__ == "__main__":

@@ -5,7 +5,15 @@ They share :class:`~uwcosim.filters.base.FilterBase` with the other filters of t
 :class:`KalmanFilter` (``kf``) needs a linear model (``model.linear``);
 :class:`ExtendedKalmanFilter` (``ekf``) linearizes with the model's exact Jacobians (on a linear
 model it is the Kalman filter).
-Updates use the Joseph form and Cholesky solves.
+Updates use the Joseph form and Cholesky solves. Dead reckoning evaluates only the rows it
+uses (no terrain lookup where the model offers ``h_rows``).
+
+``compiled = true`` (every filter of this module and of :mod:`uwcosim.filters.sigma_point`)
+runs the same equations compiled on the model's compiled form
+(:mod:`uwcosim.filters.kalman_kernels`; the TAN and linear models offer one): two compiled
+calls per step, equal to the numpy step to round-off but not bit for bit (BLAS groups the sums
+differently), hence off by default. With Numba off (``UWCOSIM_NUMBA=0``) the numpy step runs.
+The compiled step updates ``x`` and ``P`` in place (copy them to keep them).
 
 The 4-state TAN filters are bound by numpy's per-call overhead (about 0.5-1 us per operation
 on these small matrices), so the steps keep the number of numpy calls low: ``np.dot`` on
@@ -16,8 +24,11 @@ LAPACK solve, no fancy indexing when every measurement component is used.
 from __future__ import annotations
 
 import numpy as np
+from pydantic import Field, StrictBool
 
+from uwcosim.filters import kalman_kernels
 from uwcosim.filters.base import FilterBase, register
+from uwcosim.filters.kalman_kernels import NO_DATA, compiled_workspace, raise_for_status
 from uwcosim.filters.numerics import (
     gain_and_nis,
     joseph_update,
@@ -27,19 +38,60 @@ from uwcosim.filters.numerics import (
 from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
 
 
+def compiled_field():
+    """The ``compiled`` setting of the Kalman family (off: the numpy step)."""
+    return Field(False, description="run the compiled step on the model's compiled form "
+                 "(TAN and linear models): equal to the numpy step to round-off, faster")
+
+
+class CompiledUpdate:
+    """The update half of a compiled step (a mixin of :class:`FilterBase` subclasses): the
+    bookkeeping of ``FilterBase._begin_update`` and the diagnostics around one kernel call."""
+
+    def _compiled_update(self, kernel, w, z, mask, *extra) -> None:
+        """``kernel(ws, table, x, P, z, use, *extra) -> (status, nis, nis_dof, repairs)``."""
+        if not self._predicted:
+            self.diagnostics = {"pd_repairs": 0.0}
+        self._predicted = False
+        if z is None:
+            return
+        z = np.asarray(z, dtype=float)
+        use = self._use if mask is None else self._use & np.asarray(mask, dtype=bool)
+        status, nis, dof, repairs = kernel(w.ws, w.table, self.x, self.P, z, use, *extra)
+        d = self.diagnostics
+        if repairs:
+            d["pd_repairs"] += repairs
+        if status == NO_DATA:
+            return
+        if status:
+            raise_for_status(status, f"{self.kind} update")
+        d["nis"] = nis
+        d["nis_dof"] = dof
+
+
 @register("ekf")
-class ExtendedKalmanFilter(FilterBase):
+class ExtendedKalmanFilter(CompiledUpdate, FilterBase):
     """EKF: ``x = f(x, u)``, ``P = F P F' + Q``; update with ``H = dh/dx`` at the prior mean."""
 
     class Settings(FilterSettings):
         measurements: Measurements = measurements_field()
+        compiled: StrictBool = compiled_field()
 
     def __init__(self, model, x0, P0, **settings) -> None:
         super().__init__(model, x0, P0, **settings)
         self._eye = np.eye(model.nx)
+        #: the compiled step's workspace (None: the numpy step)
+        self.workspace = compiled_workspace(self, model)
 
     def predict(self, u, dt: float) -> None:
         self._begin_predict()
+        w = self.workspace
+        if w is not None:
+            w.transition(u, float(dt), w.F, w.b, w.Q)  # F, b, Q of the step (the model's)
+            status = kalman_kernels.ekf_predict(w.ws, self.x, self.P)  # x = F x + b, F P F' + Q
+            if status:
+                raise_for_status(status, f"{self.kind} prediction")
+            return
         F, Q = linearize(self.model, self.x, u, dt)
         self.x = self.model.f(self.x, u, dt)  # x = f(x, u)
         P = np.dot(np.dot(F, self.P), F.T)
@@ -48,16 +100,15 @@ class ExtendedKalmanFilter(FilterBase):
         self._check("prediction")
 
     def update(self, z, mask=None) -> None:
+        if self.workspace is not None:
+            self._compiled_update(kalman_kernels.ekf_update, self.workspace, z, mask)
+            return
         idx = self._begin_update(z, mask)
         if idx is None:
             return
         z = np.asarray(z, dtype=float)
-        model, x = self.model, self.x
-        H, hx = model.H(x), model.h(x)
-        if idx.size == hx.size:  # every component
-            y = z - hx  # y = z - h(x)
-        else:
-            H, y = H[idx], z[idx] - hx[idx]
+        x = self.x
+        H, y = self.innovation(z, idx)
         R = self._R(idx)
         PHt = np.dot(self.P, H.T)
         S = np.dot(H, PHt)
@@ -67,6 +118,14 @@ class ExtendedKalmanFilter(FilterBase):
         self.P = joseph_update(self.P, K, H, R, self._eye)  # P = (I-KH) P (I-KH)' + K R K'
         self.diagnostics["nis_dof"] = float(idx.size)
         self._check("update")
+
+    def innovation(self, z: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(H, y)`` of the components ``idx``: ``H = dh/dx`` and ``y = z - h(x)``."""
+        model, x = self.model, self.x
+        H, hx = model.H(x), model.h(x)
+        if idx.size == hx.size:  # every component
+            return H, z - hx  # y = z - h(x)
+        return H[idx], z[idx] - hx[idx]
 
 
 @register("kf")
@@ -96,6 +155,7 @@ class DeadReckoning(ExtendedKalmanFilter):
     class Settings(FilterSettings):
         measurements: Measurements = measurements_field(
             "measurement components to integrate (default: the velocities)")
+        compiled: StrictBool = compiled_field()
 
     def measurements_used(self) -> list[str]:
         """The ``measurements`` setting, by default the velocity components."""
@@ -103,3 +163,12 @@ class DeadReckoning(ExtendedKalmanFilter):
         if names is None:
             names = [n for n in self.model.measurement_names if n.endswith(("vx_m", "vy_m"))]
         return names
+
+    def innovation(self, z: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """As the EKF's, from only the rows used (``model.h_rows``: no terrain lookup for the
+        velocity rows; the same numbers)."""
+        rows = getattr(self.model, "h_rows", None)
+        if rows is None or idx.size == self.model.nz:
+            return super().innovation(z, idx)
+        hx, H = rows(self.x, idx)
+        return H, z[idx] - hx  # y = z - h(x)

@@ -20,6 +20,8 @@ it (counted in ``diagnostics['pd_repairs']``).
 As in :mod:`uwcosim.filters.kalman`, the steps keep the number of numpy calls low (they are
 bound by numpy's per-call overhead on 4-state models): the point set as one product with a
 constant matrix, ``np.dot``, symmetrization in place, the gain and the NIS from one solve.
+``compiled = true`` runs the same steps compiled on the model's compiled form
+(:mod:`uwcosim.filters.sigma_kernels`; equal to round-off, see :mod:`uwcosim.filters.kalman`).
 """
 
 from __future__ import annotations
@@ -30,7 +32,10 @@ from dataclasses import dataclass
 import numpy as np
 from pydantic import Field, StrictBool, StrictFloat
 
+from uwcosim.filters import sigma_kernels
 from uwcosim.filters.base import FilterBase, register
+from uwcosim.filters.kalman import CompiledUpdate, compiled_field
+from uwcosim.filters.kalman_kernels import Workspace, compiled_workspace, raise_for_status
 from uwcosim.filters.numerics import factor, gain_and_nis, symmetrize_
 from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
 
@@ -105,16 +110,36 @@ def cukf_unscented_rule(n: int, a: float) -> SigmaRule:
     return SigmaRule(n, a * math.sqrt(n), w, w, True)
 
 
-class SigmaPointFilter(FilterBase):
+class SigmaPointFilter(CompiledUpdate, FilterBase):
     """Predict/update of a sigma-point filter for the :class:`SigmaRule` of
     :meth:`sigma_rule`."""
 
     class Settings(FilterSettings):
         measurements: Measurements = measurements_field()
+        compiled: StrictBool = compiled_field()
 
     def __init__(self, model, x0, P0, **settings) -> None:
         super().__init__(model, x0, P0, **settings)
         self.rule = self.sigma_rule(model.nx)
+        #: the compiled step's workspace for :attr:`rule` (None: the numpy step)
+        self.workspace = self.rule_workspace(self.rule)
+
+    def rule_workspace(self, rule: SigmaRule) -> Workspace | None:
+        """The compiled step's workspace for ``rule`` (None unless ``compiled``)."""
+        npts = rule.wm.size
+        w = compiled_workspace(self, self.model, sigma_kernels.rule_fields(rule.n, npts))
+        if w is not None:
+            s = w.ws[0]
+            s["wm"], s["wc"], s["scale"], s["center"] = rule.wm, rule.wc, rule.scale, rule.center
+        return w
+
+    def _compiled_predict(self, w: Workspace, u, dt: float) -> None:
+        w.transition(u, float(dt), w.F, w.b, w.Q)  # F, b, Q of the step (the model's)
+        status, repairs = sigma_kernels.sigma_predict(w.ws, self.x, self.P)  # Y_i = f(X_i, u)
+        if repairs:
+            self.diagnostics["pd_repairs"] += repairs
+        if status:
+            raise_for_status(status, f"{self.kind} prediction")
 
     def sigma_rule(self, n: int) -> SigmaRule:
         """The rule of ``n`` states this filter uses (its settings are known)."""
@@ -153,9 +178,15 @@ class SigmaPointFilter(FilterBase):
 
     def predict(self, u, dt: float) -> None:
         self._begin_predict()
+        if self.workspace is not None:
+            self._compiled_predict(self.workspace, u, dt)
+            return
         self._propagate(self._points(self.rule), self.rule, u, dt)
 
     def update(self, z, mask=None) -> None:
+        if self.workspace is not None:
+            self._compiled_update(sigma_kernels.sigma_update, self.workspace, z, mask, False)
+            return
         idx = self._begin_update(z, mask)
         if idx is None:
             return
@@ -177,6 +208,7 @@ class UnscentedKalmanFilter(SigmaPointFilter):
                                   "(2: optimal for Gaussian priors)")
         kappa: StrictFloat = Field(0.0, description="secondary scaling parameter")
         measurements: Measurements = measurements_field()
+        compiled: StrictBool = compiled_field()
 
     def sigma_rule(self, n: int) -> SigmaRule:
         s = self.settings
@@ -234,6 +266,7 @@ class CubatureUnscentedKalmanFilter(SigmaPointFilter):
         redraw: StrictBool = Field(False, description="redraw the measurement points from "
                                    "the predicted moments (eqs. 10-13)")
         measurements: Measurements = measurements_field()
+        compiled: StrictBool = compiled_field()
 
     def __init__(self, model, x0, P0, **settings) -> None:
         super().__init__(model, x0, P0, **settings)
@@ -241,6 +274,9 @@ class CubatureUnscentedKalmanFilter(SigmaPointFilter):
         self.redraw = self.settings.redraw
         self._cycle = -1
         self._propagated: np.ndarray | None = None
+        #: the compiled step's workspace for the cubature cycles (None: the numpy step)
+        self.cubature_workspace = self.rule_workspace(self.cubature)
+        self._stored = False  # compiled: the unscented update uses the propagated points
 
     @property
     def _unscented_cycle(self) -> bool:
@@ -249,6 +285,13 @@ class CubatureUnscentedKalmanFilter(SigmaPointFilter):
     def predict(self, u, dt: float) -> None:
         self._begin_predict()
         self._cycle += 1
+        if self.workspace is not None:
+            unscented = self._unscented_cycle
+            self._compiled_predict(self.workspace if unscented else self.cubature_workspace,
+                                   u, dt)  # steps 1-2 / 4-5
+            self._stored = unscented and not self.redraw
+            self.diagnostics["cubature_step"] = 0.0 if unscented else 1.0
+            return
         rule = self.rule if self._unscented_cycle else self.cubature  # steps 1-2 / 4-5
         Y = self._propagate(self._points(rule), rule, u, dt)
         self._propagated = Y if self._unscented_cycle and not self.redraw else None
@@ -259,6 +302,11 @@ class CubatureUnscentedKalmanFilter(SigmaPointFilter):
         return cukf_unscented_rule(n, math.sqrt(3.0 / n) if a is None else a)
 
     def update(self, z, mask=None) -> None:
+        if self.workspace is not None:
+            unscented, stored, self._stored = self._unscented_cycle, self._stored, False
+            w = self.workspace if unscented else self.cubature_workspace
+            self._compiled_update(sigma_kernels.sigma_update, w, z, mask, stored and unscented)
+            return
         idx = self._begin_update(z, mask)
         if idx is None:
             return

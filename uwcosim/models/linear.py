@@ -21,7 +21,9 @@ from collections.abc import Callable
 
 import numpy as np
 
+from uwcosim.core.bicubic import Surface
 from uwcosim.core.errors import ScenarioError
+from uwcosim.models.protocol import CompiledForm
 
 CV_STATE_NAMES = ("px", "vx", "py", "vy")
 _ALIASES = {"x": "px", "y": "py"}
@@ -110,6 +112,21 @@ class LinearModel:
 
     def h_batch(self, X: np.ndarray) -> np.ndarray:
         return (self._H @ X.T).T
+
+    def compiled_form(self) -> CompiledForm:
+        """The model for the compiled Kalman steps: the transition copies ``F(dt)``,
+        ``Q(dt)`` and ``b = B(dt) u`` (nothing of a linear model needs compiling), every
+        measurement row linear (``H0 = H``), no surface row."""
+
+        def transition(u, dt, F, b, Q):
+            Fd, Qd, _ = self._mats(dt)
+            F[:] = Fd
+            Q[:] = Qd
+            drive = self._drive(u, dt)
+            b[:] = 0.0 if drive is None else drive
+
+        return CompiledForm(transition, self._H.copy(), -1, (0, 0),
+                            Surface(0.0, 0.0, 1.0, 1.0, 2, 2), np.zeros((16, 1)))
 
 
 def _axis_blocks(per_axis: np.ndarray) -> np.ndarray:

@@ -3,14 +3,18 @@
 This is the one module of :mod:`uwcosim.models` the filters import (``lint-imports`` checks
 it): a filter uses whatever model it is given through these names, and which implementation
 that is (the closed-form TAN model, a CasADi model, a linear model, a user's own) is decided
-where the model is built (:mod:`uwcosim.run.factory`).
+where the model is built (:mod:`uwcosim.run.factory`). A model may also offer its
+:class:`CompiledForm` for the compiled Kalman steps.
 """
 
 from __future__ import annotations
 
-from typing import Protocol
+from collections.abc import Callable
+from typing import NamedTuple, Protocol
 
 import numpy as np
+
+from uwcosim.core.bicubic import Surface
 
 
 class StateSpaceModel(Protocol):
@@ -34,3 +38,24 @@ class StateSpaceModel(Protocol):
     def H(self, x: np.ndarray) -> np.ndarray: ...
     def f_batch(self, X: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray: ...
     def h_batch(self, X: np.ndarray) -> np.ndarray: ...
+
+
+class CompiledForm(NamedTuple):
+    """A model in the form the compiled Kalman steps evaluate (``model.compiled_form()``,
+    optional: a model without it, or returning None, runs the numpy steps only).
+
+    The transition is affine in the state for a given ``(u, dt)``: ``x' = F x + b + w``,
+    ``w ~ N(0, Q)``; ``transition(u, dt, F, b, Q)`` writes ``F``, ``b`` and ``Q`` into the
+    caller's arrays (the model's compiled ``f`` and ``F``). The measurements are rows linear in
+    the state, ``h_r(x) = H0[r] x``, except at most one row ``surface_row`` that is a surface of
+    the two states ``surface_states`` stored as per-cell bicubic polynomials
+    (:mod:`uwcosim.core.bicubic`: ``table`` and its ``surface`` geometry), the terrain depth of
+    a TAN model; ``-1`` for none (``table`` is then a dummy).
+    """
+
+    transition: Callable[..., None]
+    H0: np.ndarray
+    surface_row: int
+    surface_states: tuple[int, int]
+    surface: Surface
+    table: np.ndarray

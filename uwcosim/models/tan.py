@@ -45,9 +45,11 @@ import casadi as ca
 import numpy as np
 
 from uwcosim.core import bspline, jit
-from uwcosim.models import terrain_kernels  # compiled lookups (importing it loads no Numba)
+from uwcosim.core.bicubic import Surface
+from uwcosim.models import tan_kernels, terrain_kernels  # compiled (importing loads no Numba)
 from uwcosim.models.auv_equations import STATE_NAMES, vehicle_ode
 from uwcosim.models.casadi_model import CasadiModel
+from uwcosim.models.protocol import CompiledForm
 from uwcosim.models.terrain import PAD, Bathymetry
 
 DVL_NAMES = ("dvl.vx_m", "dvl.vy_m")
@@ -160,6 +162,13 @@ class FastTerrain:
             return
         k.depth_rows(self._table, X, self._x0, self._y0, self._idx, self._idy, self._nx,
                      self._ny, out)
+
+    def surface(self) -> tuple[Surface, np.ndarray] | None:
+        """The map as a table surface of :mod:`uwcosim.core.bicubic` (its geometry and the
+        polynomial table), None for a map too large for the table."""
+        if self._table is None:
+            return None
+        return Surface(self._x0, self._y0, self._idx, self._idy, self._nx, self._ny), self._table
 
     def depth(self, x, y) -> np.ndarray:
         """Depth at the points (the value at the nearest edge outside the grid)."""
@@ -351,6 +360,36 @@ class TANModel:
         if self._fast_terrain is not None:
             _, H[2, 0], H[2, 1] = self._fast_terrain.point(float(x[0]), float(x[1]))
         return H
+
+    def h_rows(self, x, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(h(x)[idx], H(x)[idx])``, the terrain looked up only when its row is in ``idx``
+        (dead reckoning uses the DVL rows only); the same numbers as ``h`` and ``H``."""
+        if self._fast_terrain is not None and 2 in idx:
+            return self.h(x)[idx], self.H(x)[idx]
+        x = np.asarray(x, dtype=float)
+        return x[2:4][idx], self._H0[idx]
+
+    def compiled_form(self) -> CompiledForm | None:
+        """The model for the compiled Kalman steps (:class:`~uwcosim.models.protocol.
+        CompiledForm`): the compiled transition (:func:`uwcosim.models.tan_kernels.
+        transition`), the DVL rows and the terrain row as a table surface. None with control
+        noise (``Q`` then depends on the state) or a map too large for the table."""
+        if self.control_psd is not None:
+            return None
+        if self._fast_terrain is None:
+            surface, table, row = Surface(0.0, 0.0, 1.0, 1.0, 2, 2), np.zeros((16, 1)), -1
+        else:
+            found = self._fast_terrain.surface()
+            if found is None:
+                return None
+            (surface, table), row = found, 2
+        H0 = self._H0.copy()
+        psd = self.q_psd
+
+        def transition(u, dt, F, b, Q):  # the compiled f and F of the step
+            tan_kernels.transition(u, dt, psd, F, b, Q)
+
+        return CompiledForm(transition, H0, row, (0, 1), surface, table)
 
     def h_batch(self, X: np.ndarray) -> np.ndarray:
         out = np.empty((X.shape[0], self.nz), order="F")

@@ -1,0 +1,381 @@
+"""Compiled steps of the Kalman filters (EKF, KF, dead reckoning) on a model's compiled form.
+
+A model that offers :class:`~uwcosim.models.protocol.CompiledForm` (the TAN model does) gives
+its transition as a compiled function writing ``F``, ``b`` and ``Q`` of the step (``x' = F x +
+b + w``) and its measurements as rows linear in the state plus at most one table-surface row
+(the terrain depth, :mod:`uwcosim.core.bicubic`). A filter's step then costs two compiled calls
+(the model's transition, the filter's equations) instead of some forty numpy calls.
+
+The filter's constant data and its per-step scratch travel in one named bundle, a
+:class:`Workspace`: a one-element structured array whose fields (``ws[0].F``, ``ws[0].Q``,
+``ws[0].H0`` ...) the kernels read by name. It is the one argument bundle Numba's dispatcher
+types cheaply: a NamedTuple of arrays costs 0.3-0.5 us per field at every call, a structref 3 us
+and uncached, a structured array about 0.1 us (``benchmarks/bench_filters.py`` times the step).
+The mean ``x`` and covariance ``P`` are the filter's own arrays, updated in place.
+
+The equations are those of the numpy steps (:mod:`uwcosim.filters.kalman`), written as loops in
+index order: Cholesky by columns, solves by substitution, products by rows. Where the numpy
+steps call BLAS/LAPACK (``np.dot``, ``dpotrf``, ``dpotrs``) the sums are grouped differently,
+so the two agree to round-off (about 1e-15 relative per step), not bit for bit; the filters'
+``compiled`` setting is therefore off by default and the default logs are the numpy steps'
+(``tests/test_kalman_compiled.py`` checks the agreement and the bits of the parts that are the
+same arithmetic). PD repair, the counted jitter of :func:`uwcosim.filters.numerics.repair_pd`,
+is repeated here; a step reports what went wrong as a status code that
+:func:`raise_for_status` turns into the numpy steps' :class:`FilterDivergence`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+from uwcosim.core import bicubic, jit
+from uwcosim.core.errors import FilterDivergence
+from uwcosim.filters.numerics import JITTER_START, JITTER_STEPS
+
+OK = 0
+NO_DATA = -1  # no usable measurement component: the update does nothing
+NOT_FINITE = 1  # NaN or inf in the state or covariance after the step
+COV_NOT_FINITE = 2  # a covariance to factorize holds NaN or inf
+NOT_PD = 3  # a covariance stays indefinite after the jitter of repair_pd
+
+
+class Workspace(NamedTuple):
+    """What a compiled filter keeps for its steps: the bundle ``ws`` and the model's parts."""
+
+    ws: np.ndarray  #: the one-element structured array the kernels take
+    F: np.ndarray  #: view of ``ws[0].F``: the model's transition writes ``F``, ``b``, ``Q``
+    b: np.ndarray  #: view of ``ws[0].b``
+    Q: np.ndarray  #: view of ``ws[0].Q``
+    table: np.ndarray  #: the surface row's polynomial table (a dummy without one)
+    transition: Callable[..., None]  #: ``transition(u, dt, F, b, Q)``, the model's
+
+
+def workspace_fields(n: int, nz: int) -> list[tuple]:
+    """The fields every compiled Kalman step reads (the dtype of :func:`workspace`)."""
+    return [("F", "f8", (n, n)), ("b", "f8", n), ("Q", "f8", (n, n)),
+            ("H0", "f8", (nz, n)), ("R", "f8", (nz, nz)),
+            ("srow", "i8"), ("si", "i8"), ("sj", "i8"),  # the surface row and its states
+            ("sx0", "f8"), ("sy0", "f8"), ("sidx", "f8"), ("sidy", "f8"),
+            ("snx", "i8"), ("sny", "i8")]
+
+
+def workspace(model, extra: list[tuple] | None = None) -> Workspace | None:
+    """The :class:`Workspace` of ``model`` (None when it offers no compiled form), with the
+    ``extra`` fields of a filter (e.g. a sigma-point rule), to be filled by the caller."""
+    form_of = getattr(model, "compiled_form", None)
+    form = form_of() if form_of is not None else None
+    if form is None:
+        return None
+    n, nz = model.nx, model.nz
+    ws = np.zeros(1, dtype=np.dtype(workspace_fields(n, nz) + (extra or []), align=True))
+    s = ws[0]
+    s["H0"] = form.H0
+    s["R"] = model.R
+    s["srow"] = form.surface_row
+    s["si"], s["sj"] = form.surface_states
+    g = form.surface
+    s["sx0"], s["sy0"], s["sidx"], s["sidy"], s["snx"], s["sny"] = g
+    table = np.ascontiguousarray(form.table, dtype=float)
+    return Workspace(ws, ws["F"][0], ws["b"][0], ws["Q"][0], table, form.transition)
+
+
+def raise_for_status(status: int, what: str) -> None:
+    """Raise the :class:`FilterDivergence` of the numpy steps for a step's ``status``."""
+    if status == NOT_FINITE:
+        raise FilterDivergence(f"{what} contains NaN or inf")
+    if status == COV_NOT_FINITE:
+        raise FilterDivergence("covariance contains NaN or inf")
+    if status == NOT_PD:
+        raise FilterDivergence("covariance not positive definite beyond repair")
+
+
+@jit.jit
+def cholesky(A, L):
+    """Lower Cholesky factor of the symmetric ``A`` into ``L``; False if not PD."""
+    n = A.shape[0]
+    for j in range(n):
+        d = A[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        if not d > 0.0:
+            return False
+        ljj = math.sqrt(d)
+        L[j, j] = ljj
+        for i in range(j):
+            L[i, j] = 0.0
+        for i in range(j + 1, n):
+            v = A[i, j]
+            for k in range(j):
+                v -= L[i, k] * L[j, k]
+            L[i, j] = v / ljj
+    return True
+
+
+@jit.jit
+def factor(P, L):
+    """:func:`uwcosim.filters.numerics.factor`: ``L`` the Cholesky factor of ``P``, or of ``P``
+    symmetrized plus escalating jitter ``eps mean|diag P| I`` (``P`` repaired in place);
+    ``(repairs, status)``."""
+    if cholesky(P, L):
+        return 0.0, OK
+    n = P.shape[0]
+    total = 0.0
+    for i in range(n):
+        for j in range(i, n):
+            v = 0.5 * (P[i, j] + P[j, i])  # P = (P + P') / 2
+            P[i, j] = v
+            P[j, i] = v
+            total += v
+    if not math.isfinite(total):
+        return 0.0, COV_NOT_FINITE
+    scale = 0.0
+    for i in range(n):
+        scale += abs(P[i, i])
+    scale = max(scale / n, 1e-300)
+    eps = JITTER_START
+    Pj = np.empty_like(P)
+    for _ in range(JITTER_STEPS):
+        Pj[:, :] = P
+        for i in range(n):
+            Pj[i, i] = P[i, i] + eps * scale  # P + eps scale I
+        if cholesky(Pj, L):
+            P[:, :] = Pj
+            return 1.0, OK
+        eps *= 10.0
+    return 0.0, NOT_PD
+
+
+@jit.jit
+def cho_solve(L, B):
+    """``B = (L L')^-1 B`` in place (the columns of ``B``), by substitution."""
+    m = L.shape[0]
+    for c in range(B.shape[1]):
+        for i in range(m):  # L w = b
+            v = B[i, c]
+            for k in range(i):
+                v -= L[i, k] * B[k, c]
+            B[i, c] = v / L[i, i]
+        for i in range(m - 1, -1, -1):  # L' x = w
+            v = B[i, c]
+            for k in range(i + 1, m):
+                v -= L[k, i] * B[k, c]
+            B[i, c] = v / L[i, i]
+
+
+@jit.jit
+def gain_and_nis(PHt, S, y):
+    """``(K, nis, repairs, status)``: ``K = P H' S^-1`` and ``y' S^-1 y`` from one factor of
+    ``S`` (repaired on a copy, as :func:`uwcosim.filters.numerics.gain_and_nis`)."""
+    n, m = PHt.shape
+    S = S.copy()
+    L = np.zeros((m, m))
+    repairs, status = factor(S, L)
+    K = np.empty((n, m))
+    if status != OK:
+        return K, 0.0, repairs, status
+    B = np.empty((m, n + 1))
+    for i in range(m):
+        for j in range(n):
+            B[i, j] = PHt[j, i]
+        B[i, n] = y[i]
+    cho_solve(L, B)
+    nis = 0.0
+    for i in range(m):
+        for j in range(n):
+            K[j, i] = B[i, j]  # K = (S^-1 (P H')')'
+        nis += y[i] * B[i, n]  # nis = y' S^-1 y
+    return K, nis, repairs, OK
+
+
+@jit.jit
+def symmetrize_into(A, P):
+    """``P = (A + A') / 2``."""
+    n = A.shape[0]
+    for i in range(n):
+        P[i, i] = A[i, i]
+        for j in range(i + 1, n):
+            v = 0.5 * (A[i, j] + A[j, i])
+            P[i, j] = v
+            P[j, i] = v
+
+
+@jit.jit
+def finite(x, P):
+    """Whether ``x`` and ``P`` hold no NaN or inf."""
+    t = 0.0
+    for i in range(x.shape[0]):
+        t += x[i]
+        for j in range(P.shape[1]):
+            t += P[i, j]
+    return math.isfinite(t)
+
+
+@jit.jit
+def select_rows(z, use, rows):
+    """The available components ``rows[:m]`` (finite and used); returns ``m``."""
+    m = 0
+    for r in range(z.shape[0]):
+        if use[r] and math.isfinite(z[r]):
+            rows[m] = r
+            m += 1
+    return m
+
+
+@jit.jit
+def measure(s, table, x, rows, m, hx, H):
+    """``hx[k] = h_r(x)`` and ``H[k] = dh_r/dx`` for the rows ``r = rows[k]``, ``k < m``: the
+    linear rows ``H0[r]``, the surface row from the table (looked up only if it is asked)."""
+    n = x.shape[0]
+    for k in range(m):
+        r = rows[k]
+        if r == s.srow:
+            h, gx, gy = bicubic.value_gradient(table, s.sx0, s.sy0, s.sidx, s.sidy, s.snx,
+                                               s.sny, x[s.si], x[s.sj])
+            for j in range(n):
+                H[k, j] = 0.0
+            H[k, s.si] = gx
+            H[k, s.sj] = gy
+            hx[k] = h
+        else:
+            v = 0.0
+            for j in range(n):
+                H[k, j] = s.H0[r, j]
+                v += s.H0[r, j] * x[j]
+            hx[k] = v
+
+
+@jit.jit
+def measure_value(s, table, x, rows, m, hx):
+    """``hx[k] = h_r(x)`` for the rows ``r = rows[k]``, ``k < m`` (no Jacobian)."""
+    n = x.shape[0]
+    for k in range(m):
+        r = rows[k]
+        if r == s.srow:
+            hx[k] = bicubic.value(table, s.sx0, s.sy0, s.sidx, s.sidy, s.snx, s.sny,
+                                  x[s.si], x[s.sj])
+        else:
+            v = 0.0
+            for j in range(n):
+                v += s.H0[r, j] * x[j]
+            hx[k] = v
+
+
+@jit.jit
+def ekf_predict(ws, x, P):
+    """EKF prediction with the step's ``F``, ``b``, ``Q`` (in ``ws``); ``x``, ``P`` in place.
+    Returns the status."""
+    s = ws[0]
+    F, b, Q = s.F, s.b, s.Q
+    n = x.shape[0]
+    xp = np.empty(n)
+    for i in range(n):
+        v = 0.0
+        for j in range(n):
+            v += F[i, j] * x[j]
+        xp[i] = v + b[i]  # x = f(x, u) = F x + b
+    FP = np.zeros((n, n))
+    for i in range(n):
+        for k in range(n):
+            a = F[i, k]
+            for j in range(n):
+                FP[i, j] += a * P[k, j]
+    A = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            v = 0.0
+            for k in range(n):
+                v += FP[i, k] * F[j, k]
+            A[i, j] = v + Q[i, j]  # P = F P F' + Q
+    symmetrize_into(A, P)
+    x[:] = xp
+    return OK if finite(x, P) else NOT_FINITE
+
+
+@jit.jit
+def ekf_update(ws, table, x, P, z, use):
+    """EKF update (Joseph form) with the available components of ``z`` (finite and ``use``);
+    ``x``, ``P`` in place. Returns ``(status, nis, nis_dof, repairs)``."""
+    s = ws[0]
+    n, nz = x.shape[0], z.shape[0]
+    rows = np.empty(nz, np.int64)
+    m = select_rows(z, use, rows)
+    if m == 0:
+        return NO_DATA, 0.0, 0.0, 0.0
+    hx = np.empty(m)
+    H = np.empty((m, n))
+    measure(s, table, x, rows, m, hx, H)  # h(x) and H = dh/dx at the prior mean
+    y = np.empty(m)
+    for k in range(m):
+        y[k] = z[rows[k]] - hx[k]  # y = z - h(x)
+    PHt = np.zeros((n, m))
+    for i in range(n):
+        for k in range(n):
+            a = P[i, k]
+            for c in range(m):
+                PHt[i, c] += a * H[c, k]
+    S = np.empty((m, m))
+    for a in range(m):
+        for c in range(m):
+            v = 0.0
+            for k in range(n):
+                v += H[a, k] * PHt[k, c]
+            S[a, c] = v + s.R[rows[a], rows[c]]  # S = H P H' + R
+    K, nis, repairs, status = gain_and_nis(PHt, S, y)  # K = P H' S^-1
+    if status != OK:
+        return status, 0.0, 0.0, repairs
+    for i in range(n):
+        v = 0.0
+        for c in range(m):
+            v += K[i, c] * y[c]
+        x[i] += v  # x = x + K y
+    IKH = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            v = 0.0
+            for c in range(m):
+                v += K[i, c] * H[c, j]
+            IKH[i, j] = (1.0 if i == j else 0.0) - v
+    T = np.zeros((n, n))
+    for i in range(n):
+        for k in range(n):
+            a = IKH[i, k]
+            for j in range(n):
+                T[i, j] += a * P[k, j]
+    KR = np.zeros((n, m))
+    for i in range(n):
+        for a in range(m):
+            v = K[i, a]
+            for c in range(m):
+                KR[i, c] += v * s.R[rows[a], rows[c]]
+    A = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            v = 0.0
+            for k in range(n):
+                v += T[i, k] * IKH[j, k]
+            w = 0.0
+            for c in range(m):
+                w += KR[i, c] * K[j, c]
+            A[i, j] = v + w  # P = (I - K H) P (I - K H)' + K R K'
+    symmetrize_into(A, P)
+    return (OK if finite(x, P) else NOT_FINITE), nis, float(m), repairs
+
+
+def compiled_workspace(est, model, extra: list[tuple] | None = None) -> Workspace | None:
+    """The workspace of a filter whose ``compiled`` setting is on (None: the numpy steps, also
+    when Numba is off, :data:`uwcosim.core.jit.ENABLED`); a one-line ValueError when the model
+    offers no compiled form."""
+    # a subclass's own Settings (a user's filter derived from ours) may not declare it
+    if not getattr(est.settings, "compiled", False) or not jit.ENABLED:
+        return None
+    w = workspace(model, extra)
+    if w is None:
+        raise ValueError(
+            f"estimator {est.kind}: compiled = true needs a model with a compiled form (a linear "
+            "model, or the TAN model without control noise and its map within the table "
+            "limit); set it false")
+    return w

@@ -65,7 +65,8 @@ def estimator_metrics(cols: dict, name: str, truth: list[str], states: list[str]
     pos = position_velocity_indices(states)[0]
     if len(pos) == 2 and all(columns.variance(name, states[i]) in cols for i in pos):
         V = np.stack([cols[columns.variance(name, states[i])] for i in pos], axis=1)[1:]
-        out.update(track_loss(cols["time"][1:], E[:, pos] - X[:, pos], V))
+        ref = np.all(np.isfinite(X[:, pos]), axis=1)  # steps with a position reference
+        out.update(track_loss(cols["time"][1:][ref], (E[:, pos] - X[:, pos])[ref], V[ref]))
         out["track_lost"] = out["track_lost"] or out["diverged"]
     return out
 

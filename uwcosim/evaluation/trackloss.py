@@ -10,7 +10,9 @@ A filter has **lost the track** when its position error is, at once,
 at every sample of an interval at least ``min_duration_s`` (60 s) long (first to last sample of
 the interval). A filter that knows it is uncertain (large covariance during acquisition) has not
 lost the track; one that is confident and wrong has. A diverged filter (no estimate any more, or
-marked diverged by the master) counts as lost. The statistic is per run: the track-loss rate of a
+marked diverged by the master) counts as lost. Steps without a position reference (a replay's
+sparse fixes) are left out by the caller (:mod:`uwcosim.evaluation.summary`), so an interval
+spans the steps that have one. The statistic is per run: the track-loss rate of a
 filter over a campaign is the fraction of its runs with ``track_lost``.
 """
 

@@ -1,8 +1,10 @@
 """Collect a campaign's run records into ``runs.parquet`` and the aggregate table.
 
 ``runs.parquet``: one row per (run, estimator) with the run's RMSEs, ANEES, time per step, total
-filter time, divergence flag, seed, variant, status and error. The aggregate (seed 000 eq. 56:
-the mean over runs of each run's RMSE) goes to ``table.md`` and ``table.csv``.
+filter time, divergence and lost-track flags (:mod:`uwcosim.evaluation.trackloss`), seed,
+variant, status and error. The aggregate (seed 000 eq. 56:
+the mean over runs of each run's RMSE) goes to ``table.md`` and ``table.csv``, with the number
+of runs that lost the track over the number run (``track lost``).
 """
 
 from __future__ import annotations
@@ -43,11 +45,12 @@ def run_rows(records: list[dict]) -> list[dict]:
                 "status": r["status"], "error": r["error"]}
         if not r["estimators"]:
             rows.append({**base, "estimator": "", **{m: float("nan") for m in METRICS},
-                         "diverged": False})
+                         "diverged": False, "track_lost": False})
         for name, m in r["estimators"].items():
             rows.append({**base, "estimator": name,
                          **{k: float(m.get(k, float("nan"))) for k in METRICS},
-                         "diverged": bool(m.get("diverged", False))})
+                         "diverged": bool(m.get("diverged", False)),
+                         "track_lost": bool(m.get("track_lost", m.get("diverged", False)))})
     return rows
 
 
@@ -67,7 +70,9 @@ def aggregate(rows: list[dict]) -> list[dict]:
     for (variant, est), rs in groups.items():
         ok = [r for r in rs if r["status"] == "ok" and not r["diverged"]]
         row = {"variant": variant, "estimator": est, "runs": len(ok),
-               "diverged": sum(r["diverged"] for r in rs)}
+               "diverged": sum(r["diverged"] for r in rs),
+               "track_lost": sum(r.get("track_lost", r["diverged"]) for r in rs),
+               "runs_total": len(rs)}
         for m in METRICS:
             vals = np.array([r[m] for r in ok], dtype=float)
             vals = vals[np.isfinite(vals)]
@@ -104,14 +109,15 @@ def resource_lines(records: list[dict]) -> list[str]:
 def write_tables(agg: list[dict], out: Path) -> tuple[Path, Path]:
     md = out / "table.md"
     lines = ["| variant | estimator | runs | pos. RMSE (m) | x RMSE (m) | y RMSE (m) | vx RMSE "
-             "(m/s) | vy RMSE (m/s) | ANEES | filter time per run (s) | diverged |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "(m/s) | vy RMSE (m/s) | ANEES | filter time per run (s) | diverged | track lost |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in agg:
         lines.append(
             f"| {r['variant']} | {r['estimator']} | {r['runs']} | {r['rmse_position_m']:.2f} "
             f"± {r['rmse_position_std_m']:.2f} | {r['rmse_x_m']:.2f} | {r['rmse_y_m']:.2f} | "
             f"{r['rmse_vx_mps']:.4f} | {r['rmse_vy_mps']:.4f} | {r['anees']:.2f} | "
-            f"{r['total_time_s']:.2f} | {r['diverged']} |")
+            f"{r['total_time_s']:.2f} | {r['diverged']} | "
+            f"{r.get('track_lost', 0)}/{r.get('runs_total', r['runs'])} |")
     lines += resource_lines(read_records(out / "results"))
     md.write_text("\n".join(lines) + "\n")
     path_csv = out / "table.csv"

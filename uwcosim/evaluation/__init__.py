@@ -1,5 +1,6 @@
 """Evaluation of runs: metrics (:mod:`uwcosim.evaluation.metrics`), densities and distances for
-the reference-posterior study (``density``, ``distance``) and the evaluate stage,
+the reference-posterior study (``density``, ``distance``), the lost-track criterion
+(``trackloss``) and the evaluate stage,
 :func:`evaluate` (``summary.json`` of a run directory from its files alone)."""
 
 from uwcosim.evaluation.metrics import (

@@ -9,7 +9,9 @@ Per estimator: position and velocity RMSE of the run (seed 000 eq. 56 with ST = 
 the time average of the squared error, over steps 1..K), per-axis RMSE
 (:func:`~uwcosim.evaluation.metrics.run_rmse`), ANEES (time average of the NEES divided by the
 state dimension; 1 for a consistent filter), the fraction of NEES values inside their two-sided
-chi-square 95% band, the mean NIS, the divergence flag, and from ``simulation.json`` the time
+chi-square 95% band, the mean NIS, the divergence flag, the lost-track flag
+(:func:`~uwcosim.evaluation.trackloss.track_loss`: ``track_lost``, ``track_lost_at_s``; a
+diverged filter has lost the track), and from ``simulation.json`` the time
 per step (median, 95th percentile) and total. A plain co-simulation run (no estimators) has an
 empty ``estimators``; a run an FMU stopped has status ``terminated`` and ``termination``
 ``{fmu, time_s, reason}``. A replay's reference may have values at some steps only (sparse
@@ -38,6 +40,7 @@ import numpy as np
 from uwcosim.core.errors import UwcosimError
 from uwcosim.evaluation.metrics import chi2_ppf, run_rmse
 from uwcosim.evaluation.pcrb import position_bound, time_average
+from uwcosim.evaluation.trackloss import track_loss
 from uwcosim.models.states import position_velocity_indices
 from uwcosim.runlog import columns, read_log
 from uwcosim.runlog.rundir import SIMULATION_FILE, read_json, write_json
@@ -65,6 +68,12 @@ def estimator_metrics(cols: dict, name: str, truth: list[str], states: list[str]
     out["diverged"] = bool(diverged is not None and diverged.any())
     if out["diverged"]:
         out["diverged_at_s"] = float(cols["time"][np.argmax(diverged)])
+    pos = position_velocity_indices(states)[0]
+    if len(pos) == 2 and all(columns.variance(name, states[i]) in cols for i in pos):
+        V = np.stack([cols[columns.variance(name, states[i])] for i in pos], axis=1)[1:]
+        ref = np.all(np.isfinite(X[:, pos]), axis=1)  # steps with a position reference
+        out.update(track_loss(cols["time"][1:][ref], (E[:, pos] - X[:, pos])[ref], V[ref]))
+        out["track_lost"] = out["track_lost"] or out["diverged"]
     return out
 
 

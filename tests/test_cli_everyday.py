@@ -74,6 +74,23 @@ def test_list_estimators_scenarios_fmus(capsys):
         assert f"\n{name}: " in f"\n{out}"
     assert "n_particles=1000" in out and "resampling='systematic'" in out
     assert "rng" not in out
+    # the keys of every estimator, listed once before the filters
+    head = out.split("\nckf: ")[0]
+    for key in ("type", "policy='skip'", "sensors=None", "initial_std=None"):
+        assert f"\n    {key}" in head, key
+    assert "('extrapolate' | 'skip' | 'zero')" in head
+    # descriptions end where their sentence ends, however the docstring wraps them
+    assert ("\nrbpf: Marginalized particle filter: particles on the nonlinear states, one "
+            "Kalman filter per particle (common covariance) on the linear-Gaussian ones "
+            "[built-in]") in out
+    for name in ESTIMATORS.names():
+        line = next(x for x in out.splitlines() if x.startswith(f"{name}: "))
+        text = line[len(name) + 2:line.rindex(" [")]
+        doc = " ".join(" ".join((ESTIMATORS.get(name).__doc__ or "").split("\n\n")[0].split()
+                                ).split())
+        rest = doc[len(text):]
+        assert doc.startswith(text) and (rest in ("", ".") or rest.startswith((". ", ".\n"))), \
+            (name, text, rest[:20])
     assert main(["list", "scenarios"]) == 0
     out = capsys.readouterr().out
     assert "tan_terrain: AUV with DVL and terrain depth sounder" in out
@@ -237,3 +254,28 @@ def test_the_commands_of_the_docs_parse():
     assert len(lines) >= 6
     for line in lines:
         parser.parse_args(shlex.split(line)[1:])
+
+
+def test_fmu_validate_and_check_say_why_both_hold(capsys):
+    """pythonfmu leaves ModelStructure/InitialUnknowns empty: ``fmu validate`` (conformance)
+    exits 1, ``fmu check`` (can uwcosim run it) calls it compatible; each says why."""
+    pytest.importorskip("pythonfmu")
+    try:
+        from thirdparty_fmus import PYFMU_DIR, build_pythonfmu_vehicle
+    except ImportError:
+        from tests.thirdparty_fmus import PYFMU_DIR, build_pythonfmu_vehicle
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        fmu = str(build_pythonfmu_vehicle(Path(tmp)))
+        assert main(["fmu", "validate", fmu]) == 1
+        err = capsys.readouterr().err
+        assert "InitialUnknowns" in err
+        assert err.splitlines()[-1].startswith(f"{fmu}: not valid: ")
+        assert "'uwcosim fmu check' lists the findings of the FMI standard's rules as " \
+            "warnings" in err
+        assert main(["fmu", "check", fmu, "--role", "vehicle", "--map",
+                     str(PYFMU_DIR / "map.toml")]) == 0
+        out = capsys.readouterr().out
+        assert "result: compatible, with " in out and "finding" in out
+        assert "'uwcosim fmu validate', a conformance check, exits 1 on them" in out

@@ -204,7 +204,10 @@ def _cmd_demo(args) -> int:
 def _cmd_export(args) -> int:
     from uwcosim.export import export_csv, export_mat
 
-    print((export_csv if args.format == "csv" else export_mat)(args.run, args.out))
+    if args.format == "csv":
+        print(export_csv(args.run, args.out, units=not args.no_units))
+    else:
+        print(export_mat(args.run, args.out))
     return 0
 
 
@@ -274,6 +277,11 @@ def _cmd_fmu_validate(args) -> int:
         print(f"{args.fmu}: {p}", file=sys.stderr)
     if not problems:
         print(f"{args.fmu}: valid")
+    else:
+        print(f"{args.fmu}: not valid: {len(problems)} problem{'s' * (len(problems) != 1)} "
+              f"(a conformance check, exit 1 on any finding; 'uwcosim fmu check' lists the "
+              f"findings of the FMI standard's rules as warnings, as the master does not rely "
+              f"on them, and may still call the FMU compatible)", file=sys.stderr)
     return 1 if problems else 0
 
 
@@ -479,6 +487,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="MATLAB v5 .mat: data, columns, log struct, metadata")
     e.add_argument("--out", default=None,
                    help="output file (default: the log's path with .csv or .mat)")
+    e.add_argument("--no-units", action="store_true",
+                   help="CSV: the bare column names as header (default: 'name [unit]' for "
+                   "every column with a unit)")
     e.set_defaults(func=_cmd_export)
 
     ls = sub.add_parser("list", help="list estimators (where each comes from, settings and "
@@ -517,11 +528,14 @@ def build_parser() -> argparse.ArgumentParser:
     i = fs.add_parser("info", help="variables and capabilities of an FMU")
     i.add_argument("fmu", help="FMU archive (.fmu)")
     i.set_defaults(func=_cmd_fmu_info)
-    v = fs.add_parser("validate", help="validate an FMU (exit 1 if it has problems)")
+    v = fs.add_parser("validate", help="FMI conformance of an FMU: archive, fmpy's validation of "
+                      "the standard's rules, a binary for this platform (exit 1 on any finding; "
+                      "'fmu check' says whether uwcosim can run it)")
     v.add_argument("fmu", help="FMU archive (.fmu)")
     v.set_defaults(func=_cmd_fmu_validate)
     k = fs.add_parser("check", help="can this FMU play a role? validation, capabilities, "
-                      "variable map, smoke run (exit 1 if incompatible)")
+                      "variable map, smoke run (exit 1 if incompatible; findings of the FMI "
+                      "standard's rules are warnings)")
     k.add_argument("fmu", help="FMU archive (.fmu)")
     k.add_argument("--role", choices=["vehicle"], default=None,
                    help="check the roles of this part (and smoke-run a vehicle)")

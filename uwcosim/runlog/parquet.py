@@ -30,6 +30,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from uwcosim.core.errors import UwcosimError
+from uwcosim.runlog.units import units_of, with_units
 
 #: dtypes whose values are passed exactly (not through the float64 row): String, Int64, UInt64
 EXACT = (np.dtype(object), np.dtype(np.int64), np.dtype(np.uint64))
@@ -45,11 +46,14 @@ class RunLogger:
 
     ``dtypes`` gives the numpy dtype of the columns that are not float64; the values of those in
     :data:`EXACT` come through ``append(..., exact=[...])`` in column order, the others through
-    the float64 row (exact for int32 and smaller, bool and float32).
+    the float64 row (exact for int32 and smaller, bool and float32). ``units``: the unit of
+    each column that has one, written as its field metadata ``unit``
+    (:mod:`uwcosim.runlog.units`).
     """
 
     def __init__(self, path: Path, columns: list[str], bool_columns: list[str],
-                 metadata: dict, chunk: int = 1000, dtypes: dict | None = None) -> None:
+                 metadata: dict, chunk: int = 1000, dtypes: dict | None = None,
+                 units: dict[str, str] | None = None) -> None:
         self.path = Path(path)
         self.columns = ["time", *columns]
         self.bool_columns = list(bool_columns)
@@ -69,6 +73,7 @@ class RunLogger:
         self._journal = self._journal_file = None
         fields = [pa.field(c, arrow_type(self.dtypes.get(c, np.float64))) for c in self.columns]
         fields += [pa.field(c, pa.bool_()) for c in self.bool_columns]
+        fields = [with_units(f, units or {}) for f in fields]
         self.schema = pa.schema(fields, metadata={"uwcosim": json.dumps(metadata, sort_keys=True)})
         try:
             self._writer = pq.ParquetWriter(self.path, self.schema, compression="zstd")
@@ -178,13 +183,39 @@ def recover_log(path: str | Path) -> int:
     return table.num_rows
 
 
-def read_log(path: str | Path) -> tuple[dict[str, np.ndarray], dict]:
-    """Read a run log: ``(columns as numpy arrays, metadata dict)``. A log whose writer was
-    killed (no Parquet footer) is read from its journal: every finished row group."""
+def read_log(path: str | Path, as_dataframe: bool = False):
+    """Read a run log: ``(columns as numpy arrays, metadata dict)``; with ``as_dataframe`` a
+    ``pandas.DataFrame`` (pandas: the optional extra ``uwcosim[pandas]``) with the columns'
+    units in ``df.attrs["units"]`` (``{column: unit}``) and the metadata in
+    ``df.attrs["uwcosim"]``. A log whose writer was killed (no Parquet footer) is read from its
+    journal: every finished row group."""
     path = Path(path)
     if not path.is_file():
         raise UwcosimError(f"{path}: run log not found")
     table = _read_table(path)
     meta = table.schema.metadata or {}
     info = json.loads(meta.get(b"uwcosim", b"{}"))
+    if as_dataframe:
+        return to_dataframe(table, info)
     return {name: table.column(name).to_numpy() for name in table.column_names}, info
+
+
+def read_units(path: str | Path) -> dict[str, str]:
+    """``{column: unit}`` of a run log (the columns that carry a unit)."""
+    path = Path(path)
+    if not path.is_file():
+        raise UwcosimError(f"{path}: run log not found")
+    return units_of(_read_table(path).schema)
+
+
+def to_dataframe(table: pa.Table, info: dict):
+    """A log's table as a ``pandas.DataFrame``, its units and metadata in ``attrs``."""
+    try:
+        import pandas  # noqa: F401 - optional dependency: only the DataFrame needs it
+    except ImportError:
+        raise UwcosimError("read_log(..., as_dataframe=True) needs pandas: pip install "
+                           "'uwcosim[pandas]'") from None
+    df = table.replace_schema_metadata(None).to_pandas()
+    df.attrs["units"] = units_of(table.schema)
+    df.attrs["uwcosim"] = info
+    return df

@@ -264,6 +264,20 @@ class TANModel:
         self._key: tuple | None = None
         self._sqrt_dt: float | None = None
 
+    def without_terrain(self) -> TANModel:
+        """The same model measuring the DVL velocities only (``nz = 2``, the depth row and the
+        terrain dropped): for a filter that uses only them (dead reckoning), which then does no
+        terrain lookup. The same numbers in its rows of ``h``, ``H`` and ``R``."""
+        m = object.__new__(TANModel)
+        m.__dict__.update(self.__dict__)
+        m.nz = 2
+        m.measurement_names = tuple(self.measurement_names[:2])
+        m.R = np.asarray(self.R)[:2, :2].copy()
+        m.terrain = m._fast_terrain = None
+        m._H0 = self._H0[:2].copy()
+        m._key = None  # its own cache of the (u, dt) matrices
+        return m
+
     def _mats(self, u, dt: float) -> list:
         """``[F, G, b, Q, Q_factor]`` for ``(u, dt)``; the last two are filled on demand."""
         psi, a, dt = float(u[0]), float(u[1]), float(dt)

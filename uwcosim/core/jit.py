@@ -53,7 +53,7 @@ def _compile_all() -> None:
     import numba  # optional dependency: imported at the first kernel call (about 0.5 s)
 
     if on_compile is not None:
-        _listen(on_compile)
+        listen(on_compile)
     compiled = {}
     spaces = {}
     for fn, fastmath, stub in _PLAIN:
@@ -68,7 +68,7 @@ def _compile_all() -> None:
     _PLAIN.clear()
 
 
-def _listen(hook) -> None:
+def listen(hook) -> None:
     """Call ``hook(kernel name)`` on Numba's compile events (a cache miss; a load from the
     cache raises none)."""
     from numba.core import event

@@ -10,6 +10,9 @@ Measured in one run, side by side (the machine is shared: compare the rows, not 
    (``lost_measurements``: Kalman filters only, no compiled kernel; ``tan_dead_reckoning`` and
    ``tan_terrain``: six filters, four of them with compiled kernels), each also with
    ``UWCOSIM_FAST_EXIT=0`` (the interpreter's normal teardown after the last line);
+   with ``--compare SRC`` (an unpacked older source tree, e.g. ``git archive main``, with its
+   FMUs in ``SRC/fmus``) the same ``--version`` and ``lost_measurements`` commands run from it
+   (``PYTHONPATH=SRC``) in the same loop: the before/after ratio;
 2. the import time of a 10-step ``lost_measurements`` run (``python -X importtime``), the
    self time of every module summed by top-level package (numba, scipy, casadi, ...): where the
    fixed cost of a run is; and which of numba, matplotlib and pandas a run imports.
@@ -39,7 +42,7 @@ SCENARIOS = ("lost_measurements", "tan_dead_reckoning", "tan_terrain")
 def wall(cmd: list[str], env: dict | None = None) -> float:
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                   env=env, cwd=ROOT)
+                   env=env, cwd=(env or {}).get("BENCH_CWD", ROOT))
     return time.perf_counter() - t0
 
 
@@ -67,6 +70,8 @@ def import_breakdown(cmd: list[str]) -> tuple[dict[str, float], set[str]]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5, help="timed runs per command")
+    ap.add_argument("--compare", default=None, metavar="SRC",
+                    help="an older source tree to time side by side (PYTHONPATH=SRC)")
     args = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="bench_startup_"))
     slow_exit = {**os.environ, "UWCOSIM_FAST_EXIT": "0"}
@@ -75,6 +80,13 @@ def main() -> int:
     for s in SCENARIOS:
         rows.append((f"run {s} (10 steps, --no-figures)", run_cmd(s, tmp / s), None))
         rows.append((f"run {s}, normal interpreter exit", run_cmd(s, tmp / s), slow_exit))
+    if args.compare:
+        src = Path(args.compare).resolve()
+        old = {**os.environ, "PYTHONPATH": str(src), "BENCH_CWD": str(src)}
+        rows.append((f"before ({src.name}): uwcosim --version", [*UWCOSIM, "--version"], old))
+        rows.append((f"before ({src.name}): run lost_measurements (10 steps, --no-figures)",
+                     run_cmd(str(src / "scenarios" / "lost_measurements.toml"),
+                             tmp / "before"), old))
     for _, cmd, env in rows:  # warm: FMUs, kernel cache, file cache
         wall(cmd, env)
     times: dict[str, list[float]] = {label: [] for label, _, _ in rows}

@@ -1,10 +1,11 @@
 """Command-line interface: a thin layer over the library.
 
-``uwcosim run SCENARIO [--seed N] [--out DIR] [--set key=value ...]``,
+``uwcosim run SCENARIO [--seed N] [--out DIR] [--set key=value ...]`` (a shipped scenario also
+by name: ``uwcosim run tan_terrain``),
 ``uwcosim check SCENARIO [--set key=value ...]``, ``uwcosim schema [--out FILE]``,
 ``uwcosim report RUN``,
 ``uwcosim export RUN --csv|--mat``, ``uwcosim list estimators|models|scenarios|fmus``,
-``uwcosim demo``,
+``uwcosim demo``, ``uwcosim docs``,
 ``uwcosim fmu build|info|validate|check ...``, ``uwcosim regress RUN BASELINE``,
 ``uwcosim baseline update|check``, ``uwcosim campaign SPEC``, ``uwcosim verify example1``,
 ``uwcosim ssp export SCENARIO [--out FILE] [--ssp-version 1.0|2.0]``,
@@ -15,6 +16,8 @@ User errors are caught once here: one line on stderr, a non-zero exit status, no
 Each command imports its modules inside its function, when it runs: start-up laziness (``uwcosim
 --help`` and a command load only what that command needs). This is the one module of the
 package that imports uwcosim modules inside functions (``tests/test_architecture.py``).
+After ``run``, ``demo`` and ``campaign`` the process ends once every file is closed, without the
+interpreter's slow teardown (:func:`_leave`; ``UWCOSIM_FAST_EXIT=0`` keeps it).
 """
 
 from __future__ import annotations

@@ -224,11 +224,12 @@ def test_a_wheel_alone_runs_the_demo(wheel_venv, tmp_path):
         assert f"uwcosim: {stage}" in res.stderr, res.stderr
 
 
-def test_campaign_checks_its_fmus_before_any_worker_starts(tmp_path):
+def test_campaign_checks_its_fmus_before_any_worker_starts(tmp_path, project_fmus):
     """A variant whose FMU is missing (and not one of the project's, so not built): one line,
     exit 3, no run started."""
     scen = (ROOT / "scenarios" / "tan_dead_reckoning.toml").read_text()
-    (tmp_path / "s.toml").write_text(scen.replace("../fmus/DVL.fmu", str(tmp_path / "X.fmu")))
+    scen = scen.replace("../fmus/DVL.fmu", str(tmp_path / "X.fmu"))
+    (tmp_path / "s.toml").write_text(scen.replace('"../fmus/', f'"{project_fmus}/'))
     (tmp_path / "c.toml").write_text('name = "c"\nruns = 1\n[[variants]]\nname = "v"\n'
                                      'scenario = "s.toml"\n')
     res = _uwcosim("campaign", str(tmp_path / "c.toml"), "--out", str(tmp_path / "out"),
@@ -279,3 +280,21 @@ def test_fmu_validate_and_check_say_why_both_hold(capsys):
         out = capsys.readouterr().out
         assert "result: compatible, with " in out and "finding" in out
         assert "'uwcosim fmu validate', a conformance check, exits 1 on them" in out
+
+
+def test_fast_exit_keeps_the_exit_code_and_closed_files(tmp_path, project_fmus):
+    """``run`` ends with ``os._exit`` after its files are closed: the exit status of a user
+    error (2) and of a good run (0), a readable log, the stdout printed in full."""
+    bad = _uwcosim("run", "lost_measurements", "--set", "run.duration=-1", "--out",
+                   str(tmp_path / "bad"))
+    assert bad.returncode == 2 and bad.stderr.startswith("uwcosim: error: "), bad.stderr
+    ok = _uwcosim("run", "lost_measurements", "--set", "run.duration=5", "--no-figures",
+                  "--out", str(tmp_path / "ok"))
+    assert ok.returncode == 0, ok.stderr
+    assert ok.stdout.rstrip().splitlines()[-3:] == [
+        f"run directory: {tmp_path / 'ok'}", "open: summary.json, log.parquet",
+        f"figures and report: uwcosim report {tmp_path / 'ok'} [--html]"]
+    from uwcosim.runlog import read_log
+
+    cols, _ = read_log(tmp_path / "ok" / "log.parquet")
+    assert len(cols["time"]) == 6 and not (tmp_path / "ok" / "log.parquet.journal").exists()

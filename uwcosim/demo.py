@@ -16,8 +16,9 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from uwcosim.fmu.build import build_fmus
+from uwcosim.master.observer import Observer
 from uwcosim.reports.run_report import report_run
-from uwcosim.run.simulate import RunResult, run_scenario
+from uwcosim.run.simulate import ReportStage, RunResult, run_scenario
 from uwcosim.scenario.load import load_scenario
 from uwcosim.scenario.shipped import copy_shipped, missing_fmus
 
@@ -53,7 +54,8 @@ def prepare_cache(cache: Path | None = None) -> Path:
 
 
 def run_demo(out: Path, overrides: Sequence[str] = (), cache: Path | None = None,
-             seed: int | None = None, progress=None, report=None) -> RunResult:
+             seed: int | None = None, progress: Observer | None = None,
+             report: ReportStage | None = None) -> RunResult:
     """Prepare the cache and run the TAN scenario into ``out``; the :class:`RunResult`.
     ``report``: the report stage (default :func:`uwcosim.reports.run_report.report_run`)."""
     if report is None:

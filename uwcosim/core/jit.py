@@ -36,9 +36,9 @@ import os
 ENABLED = (importlib.util.find_spec("numba") is not None
            and os.environ.get("UWCOSIM_NUMBA", "1") != "0")
 
-#: ``on_compile(name)``, if set before the first kernel call: called when Numba starts
-#: compiling a kernel because its on-disk cache has no entry for it (after an install or an
-#: update: 1-3 min in all, once), not when it loads one (``uwcosim run`` says what it is doing)
+#: ``on_compile(name)``, if set: called when Numba starts compiling a kernel because its
+#: on-disk cache has no entry for it (after an install or an update: 1-3 min in all, once), not
+#: when it loads one (``uwcosim run`` says what it is doing); looked up at each event
 on_compile = None
 
 # Every kernel registers here (python function, fastmath flags, first-call stub) until the
@@ -52,8 +52,7 @@ def _compile_all() -> None:
     the first-call stubs (their own names and the names they import from each other)."""
     import numba  # optional dependency: imported at the first kernel call (about 0.5 s)
 
-    if on_compile is not None:
-        listen(on_compile)
+    listen(_announce)  # once: _PLAIN is empty after this
     compiled = {}
     spaces = {}
     for fn, fastmath, stub in _PLAIN:
@@ -66,6 +65,12 @@ def _compile_all() -> None:
             if hit is not None and hit[0] is value:
                 g[name] = hit[1]
     _PLAIN.clear()
+
+
+def _announce(kernel: str) -> None:
+    hook = on_compile
+    if hook is not None:
+        hook(kernel)
 
 
 def listen(hook) -> None:

@@ -24,6 +24,7 @@ import os
 import threading
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pyarrow as pa
@@ -31,6 +32,9 @@ import pyarrow.parquet as pq
 
 from uwcosim.core.errors import UwcosimError
 from uwcosim.runlog.units import units_of, with_units
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: dtypes whose values are passed exactly (not through the float64 row): String, Int64, UInt64
 EXACT = (np.dtype(object), np.dtype(np.int64), np.dtype(np.uint64))
@@ -219,7 +223,8 @@ def recover_log(path: str | Path) -> int:
     return table.num_rows
 
 
-def read_log(path: str | Path, as_dataframe: bool = False):
+def read_log(path: str | Path, as_dataframe: bool = False
+             ) -> tuple[dict[str, np.ndarray], dict] | pd.DataFrame:
     """Read a run log: ``(columns as numpy arrays, metadata dict)``; with ``as_dataframe`` a
     ``pandas.DataFrame`` (pandas: the optional extra ``uwcosim[pandas]``) with the columns'
     units in ``df.attrs["units"]`` (``{column: unit}``) and the metadata in
@@ -244,7 +249,7 @@ def read_units(path: str | Path) -> dict[str, str]:
     return units_of(_read_table(path).schema)
 
 
-def to_dataframe(table: pa.Table, info: dict):
+def to_dataframe(table: pa.Table, info: dict) -> pd.DataFrame:
     """A log's table as a ``pandas.DataFrame``, its units and metadata in ``attrs``."""
     try:
         import pandas  # noqa: F401 - optional dependency: only the DataFrame needs it

@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 UWC    := $(VENV)/bin/uwcosim
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test fmus lint bench baselines clean chromium
+.PHONY: demo test fmus lint bench baselines clean chromium wheel-test
 
 $(STAMP): pyproject.toml setup.py
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +28,11 @@ chromium:
 
 test: fmus chromium
 	$(PY) -m pytest -q
+
+# the wheel alone (part of `make test` too): built, installed into a fresh venv without
+# downloads, run from an empty folder (list/run/campaign/baseline check/demo/docs)
+wheel-test: $(STAMP)
+	$(PY) -m pytest -q tests/test_cli_everyday.py -k wheel
 
 baselines: fmus
 	$(UWC) baseline update

@@ -1,8 +1,9 @@
-"""Ship the example scenarios inside the package (``uwcosim/_data/scenarios``) in wheels.
+"""Ship the example scenarios, the golden baselines and the docs inside the package in wheels.
 
-Everything else is in pyproject.toml. The scenarios stay in ``scenarios/`` of the checkout (the
-tests, baselines and docs use them there); a built wheel carries a copy, found by
-:func:`uwcosim.core.paths.scenarios_dir` when no checkout is around. Editable installs skip the copy.
+Everything else is in pyproject.toml. The files stay where the checkout has them
+(``scenarios/``, ``tests/baselines/``, ``docs/`` and ``README.md``); a built wheel carries copies
+under ``uwcosim/_data/`` (``scenarios``, ``baselines``, ``docs``), found by
+:mod:`uwcosim.core.paths` when no checkout is around. Editable installs skip the copies.
 """
 
 import shutil
@@ -14,17 +15,21 @@ from setuptools.command.build_py import build_py
 HERE = Path(__file__).resolve().parent
 
 
-class BuildWithScenarios(build_py):
+class BuildWithData(build_py):
     def run(self):
         super().run()
         if getattr(self, "editable_mode", False):
             return
-        src = HERE / "scenarios"
-        dst = Path(self.build_lib) / "uwcosim" / "_data" / "scenarios"
-        for path in sorted(src.rglob("*.toml")):
-            target = dst / path.relative_to(src)
-            target.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(path, target)
+        data = Path(self.build_lib) / "uwcosim" / "_data"
+        for src, dst, patterns in (
+                (HERE / "scenarios", data / "scenarios", ("*.toml",)),
+                (HERE / "tests" / "baselines", data / "baselines", ("*.parquet",)),
+                (HERE / "docs", data / "docs", ("*.md", "*.png", "*.svg", "*.csv"))):
+            for path in sorted(p for pattern in patterns for p in src.rglob(pattern)):
+                target = dst / path.relative_to(src)
+                target.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(path, target)
+        shutil.copyfile(HERE / "README.md", data / "docs" / "README.md")
 
 
-setup(cmdclass={"build_py": BuildWithScenarios})
+setup(cmdclass={"build_py": BuildWithData})

@@ -41,3 +41,16 @@ def tan(project_fmus):
         return load_scenario(SCENARIOS / name, list(overrides))
 
     return load
+
+
+#: how the progress lines of ``run``/``demo`` begin on stderr (uwcosim.run.progress; one line
+#: per stage when stderr is no terminal)
+PROGRESS_LINES = ("uwcosim: simulating", "uwcosim: simulated", "uwcosim: evaluating",
+                  "uwcosim: figures", "uwcosim: compiling", "uwcosim: building the project",
+                  "uwcosim: built ")
+
+
+def without_progress(err: str) -> str:
+    """``err`` without the progress lines: what is left is the errors and warnings."""
+    return "".join(line for line in err.splitlines(keepends=True)
+                   if not line.startswith(PROGRESS_LINES))

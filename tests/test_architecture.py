@@ -109,6 +109,8 @@ PRIVATE_READS_OK = {
     ("uwcosim/cli.py", "argparse._VersionAction"),
     ("uwcosim/campaign/execute.py", "getattr(ex, '_processes', None)"),
     ("uwcosim/filters/projection/series.py", "new._cache"),
+    # the command line's fast exit: the exit handlers, then no interpreter teardown
+    ("uwcosim/cli.py", "atexit._run_exitfuncs"), ("uwcosim/cli.py", "os._exit"),
 }
 
 

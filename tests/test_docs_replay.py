@@ -103,7 +103,7 @@ def test_the_walk_through(tmp_path, cli, monkeypatch):
     code, printed, _ = cli("export", out, "--csv")
     assert code == 0
     header = (out / "log.csv").read_text().splitlines()[0]
-    assert '"truth.lat_deg"' in header and '"est.ekf.lon_deg"' in header
+    assert '"truth.lat_deg [deg]"' in header and '"est.ekf.lon_deg [deg]"' in header
     # the commands of section 3 are the ones run here
     block = re.search(r"## 3\. Running it\n\n```sh\n(.*?)```", DOC.read_text(), re.S).group(1)
     for cmd in ("uwcosim check mission.toml", "uwcosim run mission.toml --out",

@@ -13,7 +13,7 @@ from scipy.io import loadmat
 from uwcosim.api import run_scenario
 from uwcosim.cli import main
 from uwcosim.export import matlab_names
-from uwcosim.runlog import read_log
+from uwcosim.runlog import read_log, read_units
 from uwcosim.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,14 +32,25 @@ def test_csv_has_every_column_and_value(run, capsys):
     path = Path(capsys.readouterr().out.strip())
     assert path == run / "log.csv"
     cols, _ = read_log(run / "log.parquet")
+    units = read_units(run / "log.parquet")
     table = pcsv.read_csv(path)
-    assert table.column_names == list(cols)
-    for name, values in cols.items():
-        got = table.column(name).to_numpy(zero_copy_only=False)
+    assert table.column_names == [f"{c} [{units[c]}]" if c in units else c for c in cols]
+    assert table.column_names[0] == "time [s]"
+    assert all(c in units for c in cols if c.startswith("est.") and cols[c].dtype != bool)
+    for name, header in zip(cols, table.column_names):
+        values = cols[name]
+        got = table.column(header).to_numpy(zero_copy_only=False)
         if values.dtype == bool:
             assert (got == values).all(), name
         else:
             np.testing.assert_array_equal(got, values, err_msg=name)  # NaN == NaN here
+
+
+def test_csv_without_units_has_the_bare_names(run, tmp_path):
+    assert main(["export", str(run), "--csv", "--no-units", "--out", str(tmp_path / "x.csv")]
+                ) == 0
+    cols, _ = read_log(run / "log.parquet")
+    assert pcsv.read_csv(tmp_path / "x.csv").column_names == list(cols)
 
 
 def test_mat_has_data_columns_struct_and_metadata(run, tmp_path, capsys):

@@ -197,3 +197,17 @@ def test_fast_terrain_point_gradient_and_fallback(terrain, monkeypatch):
     np.testing.assert_allclose(slow.depth(xs / 20, ys / 20), small.depth(xs / 20, ys / 20))
     np.testing.assert_allclose(slow.point(100.0, 200.0), [a[0] for a in small.gradient(
         np.array([100.0]), np.array([200.0]))])
+
+
+def test_dead_reckoning_does_no_terrain_work(model, trajectory):
+    """Dead reckoning runs on the DVL-only view of the TAN model (no terrain lookup) and gives
+    the numbers of the EKF restricted to the DVL rows of the full model, to the bit."""
+    from uwcosim.filters import build
+
+    _, zs, x0 = trajectory
+    P0 = np.diag(STD0 ** 2)
+    dr = build("dead_reckoning", model, x0, P0, {})
+    assert dr.model.terrain is None and dr.model.nz == 2 and list(dr.rows) == [0, 1]
+    ekf = build("ekf", model, x0, P0, {"measurements": list(model.measurement_names[:2])})
+    np.testing.assert_array_equal(run(dr, zs), run(ekf, zs))
+    np.testing.assert_array_equal(dr.P, ekf.P)

@@ -116,7 +116,7 @@ def test_a_simulation_over_a_latlon_map_starts_at_geo_start_and_logs_latlon(tmp_
     assert (run / "trajectory.png").is_file()
     from uwcosim.export import export_csv
     header = export_csv(run, tmp_path / "log.csv").read_text().splitlines()[0]
-    assert '"truth.lat_deg"' in header and '"est.ekf.lon_deg"' in header
+    assert '"truth.lat_deg [deg]"' in header and '"est.ekf.lon_deg [deg]"' in header
 
 
 def test_geographic_columns_of_a_replay(tmp_path):

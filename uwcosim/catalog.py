@@ -3,8 +3,10 @@
 - estimators: every filter with where it comes from (built-in; an entry point of
   ``uwcosim.estimators`` with its distribution and version; a scenario's
   ``package.module:ClassName``, with ``--scenario``; one a user's module registered), the first
-  line of its docstring and its settings (its settings model, :mod:`uwcosim.filters.settings`):
-  name, type, default and description;
+  sentence of its docstring (whole, however the docstring wraps it) and its settings (its
+  settings model, :mod:`uwcosim.filters.settings`): name, type, default and description; first
+  the keys every estimator takes (:data:`COMMON_KEYS`: ``type``, ``policy``, ``sensors``,
+  ``initial_std``, the fields of :class:`uwcosim.scenario.schema.EstimatorSpec`);
 - models: the built-in filter models (``[model] kind``) and the installed builders (entry
   points of ``uwcosim.models``, ``[model] type``);
 - scenarios: the shipped scenarios (:func:`uwcosim.core.paths.scenarios_dir`), name and
@@ -15,6 +17,7 @@
 
 from __future__ import annotations
 
+import re
 import tomllib
 import types
 from pathlib import Path
@@ -26,14 +29,23 @@ from uwcosim.core.errors import ScenarioError
 from uwcosim.core.paths import cache_dir, project_root, scenarios_dir
 from uwcosim.filters.base import settings_model
 from uwcosim.filters.plugins import estimator_names, estimator_origin, resolve_estimator
+from uwcosim.filters.policies import POLICIES
 from uwcosim.fmu.build import FMI_VERSIONS, archive_name
 from uwcosim.fmu.specs import MODELS
 from uwcosim.models.builder import model_types
 from uwcosim.scenario.json_schema import scenario_estimator_types
+from uwcosim.scenario.schema import EstimatorSpec
 
-
-def _first_line(doc: str | None) -> str:
-    return (doc or "").strip().splitlines()[0].rstrip(".") if doc and doc.strip() else ""
+#: the keys of ``[estimators.NAME]`` that every estimator takes (the fields of
+#: :class:`~uwcosim.scenario.schema.EstimatorSpec`), what they do
+COMMON_KEYS = {
+    "type": "the filter: one of the names below (or 'package.module:ClassName')",
+    "policy": "what the filter is fed when a measurement is lost (uwcosim.filters.policies)",
+    "sensors": "the sensors whose measurements it uses (default: every sensor of [model] "
+               "sensors)",
+    "initial_std": "its own initial standard deviations, one per state (default: "
+                   "[estimation] initial_std)",
+}
 
 
 def _type_name(t) -> str:
@@ -58,12 +70,39 @@ def estimator_settings(kind: str) -> list[tuple[str, str, object, str]]:
             for n, f in model.model_fields.items()]
 
 
+def summary(doc: str | None) -> str:
+    """The first sentence of a docstring's first paragraph, joined across its wrapped lines
+    (without its final period)."""
+    lines = []
+    for line in (doc or "").strip().splitlines():
+        if not line.strip():
+            break
+        lines.append(line.strip())
+    text = " ".join(lines)
+    m = re.search(r"(?<!e\.g)(?<!i\.e)(?<!eq)(?<!\bal)\.(\s|$)", text)
+    return (text[:m.start()] if m else text).rstrip(".")
+
+
+def common_keys() -> list[str]:
+    """The lines of :data:`COMMON_KEYS`: ``key=default (type): what it does``."""
+    out = []
+    for key, what in COMMON_KEYS.items():
+        info = EstimatorSpec.model_fields[key]
+        typ = _type_name(info.annotation)
+        if key == "policy":
+            typ = " | ".join(repr(n) for n in POLICIES.names())
+        out.append(f"    {key} ({typ}, required): {what}" if info.is_required() else
+                   f"    {key}={info.default!r} ({typ}): {what}")
+    return out
+
+
 def list_estimators(scenario: str | Path | None = None) -> str:
     """Every filter (with ``scenario``: also its ``package.module:ClassName`` types), where it
-    comes from, and its settings. An installed entry point that fails to load is listed with
-    its error."""
+    comes from, and its settings, after the keys every estimator takes. An installed entry
+    point that fails to load is listed with its error."""
     extra = scenario_estimator_types(scenario) if scenario is not None else []
-    lines = []
+    lines = ["every estimator ([estimators.NAME] of a scenario) takes:", *common_keys(),
+             "and its own settings:"]
     for name in dict.fromkeys([*estimator_names(), *extra]):
         try:
             cls = resolve_estimator(name)
@@ -71,13 +110,13 @@ def list_estimators(scenario: str | Path | None = None) -> str:
         except ScenarioError as exc:
             lines.append(f"{name}: cannot be loaded: {exc}")
             continue
-        lines.append(f"{name}: {_first_line(cls.__doc__)} [{origin}]")
+        lines.append(f"{name}: {summary(cls.__doc__)} [{origin}]")
         settings = estimator_settings(name)
         if not settings:
             lines.append("    settings: none")
         for setting, typ, default, doc in settings:
-            value = "required" if default == "required" else f"={default!r}"
-            lines.append(f"    {setting}{value} ({typ}): {doc}")
+            lines.append(f"    {setting} ({typ}, required): {doc}" if default == "required"
+                         else f"    {setting}={default!r} ({typ}): {doc}")
     return "\n".join(lines)
 
 

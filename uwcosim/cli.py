@@ -1,10 +1,11 @@
 """Command-line interface: a thin layer over the library.
 
-``uwcosim run SCENARIO [--seed N] [--out DIR] [--set key=value ...]``,
+``uwcosim run SCENARIO [--seed N] [--out DIR] [--set key=value ...]`` (a shipped scenario also
+by name: ``uwcosim run tan_terrain``),
 ``uwcosim check SCENARIO [--set key=value ...]``, ``uwcosim schema [--out FILE]``,
 ``uwcosim report RUN``,
 ``uwcosim export RUN --csv|--mat``, ``uwcosim list estimators|models|scenarios|fmus``,
-``uwcosim demo``,
+``uwcosim demo``, ``uwcosim docs``,
 ``uwcosim fmu build|info|validate|check ...``, ``uwcosim regress RUN BASELINE``,
 ``uwcosim baseline update|check``, ``uwcosim campaign SPEC``, ``uwcosim verify example1``,
 ``uwcosim ssp export SCENARIO [--out FILE] [--ssp-version 1.0|2.0]``,
@@ -15,6 +16,8 @@ User errors are caught once here: one line on stderr, a non-zero exit status, no
 Each command imports its modules inside its function, when it runs: start-up laziness (``uwcosim
 --help`` and a command load only what that command needs). This is the one module of the
 package that imports uwcosim modules inside functions (``tests/test_architecture.py``).
+After ``run``, ``demo`` and ``campaign`` the process ends once every file is closed, without the
+interpreter's slow teardown (:func:`_leave`; ``UWCOSIM_FAST_EXIT=0`` keeps it).
 """
 
 from __future__ import annotations
@@ -25,8 +28,17 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
-from uwcosim.core.errors import UwcosimError
+from uwcosim.core.errors import FMUError, UwcosimError
 from uwcosim.core.version import __version__
+
+ANEES_NOTE = ("ANEES: average normalized estimation error squared, per state; 1 = consistent "
+              "(covariance matches the errors), < 1 pessimistic, > 1 overconfident")
+
+#: what a run directory holds that a person opens, in this order (``report.html``: ``uwcosim
+#: report RUN --html``)
+OPEN_FILES = ("report.md", "report.html", "trajectory.png", "position_error.png",
+              "position_error_norm.png", "signals.png", "density_t*.png", "summary.json",
+              "log.parquet")
 
 
 def _print_result(result) -> None:
@@ -35,6 +47,7 @@ def _print_result(result) -> None:
     s = result.summary
     if s["estimators"]:
         print(results_table(s), end="")
+        print(ANEES_NOTE)
         b = s.get("bound")
         if b:
             print(f"PCRB position {b['position_m']:.3f} m over {b.get('runs', '?')} truth runs "
@@ -56,20 +69,98 @@ def _print_result(result) -> None:
     else:
         print(f"master overhead {1e6 * t['master_overhead_per_step_s']:.1f} us/step, "
               f"FMUs {1e6 * t['fmus_per_step_s']:.1f} us/step")
-    print(f"run directory: {result.out_dir}")
+    out = Path(result.out_dir).resolve()
+    print(f"run directory: {out}")
+    files = [p.name for pattern in OPEN_FILES for p in sorted(out.glob(pattern))]
+    if files:
+        print(f"open: {', '.join(files)}")
+    if not (out / "report.md").is_file() and s["estimators"]:
+        print(f"figures and report: uwcosim report {out} [--html]")
+
+
+def _scenario_path(arg: str, campaign: bool = False) -> Path:
+    """A scenario (or campaign spec) argument: a file, or the name of a shipped one
+    (``tan_terrain``, ``smoke``); a shipped file of an installed wheel is run from its copy in
+    the cache folder, where its FMUs are built on first use."""
+    from uwcosim.core.paths import shipped_names, shipped_scenario
+
+    path = Path(arg)
+    if not path.exists():
+        found = shipped_scenario(arg)
+        if found is None:
+            if path.suffix in ("", ".toml") and "/" not in arg:
+                names = ", ".join(shipped_names(campaign))
+                raise UwcosimError(f"{arg}: {'campaign spec' if campaign else 'scenario'} "
+                                   f"file not found, nor a shipped one by that name "
+                                   f"(shipped: {names}; see uwcosim list scenarios)")
+            return path  # the loader's own message
+        path = found
+    from uwcosim.scenario.shipped import runnable
+
+    return runnable(path)
+
+
+def _provide_fmus(paths) -> None:
+    """Build the project FMUs among ``paths`` that are missing (first use of a wheel's shipped
+    scenario, or a checkout without ``make fmus``); nothing imported when none is."""
+    from uwcosim.scenario.shipped import missing_fmus
+
+    paths = list(paths)
+    if missing_fmus(paths):
+        from uwcosim.demo import provide_fmus
+
+        provide_fmus(paths)
+
+
+class _Progress:
+    """The progress of ``run``/``demo`` (:class:`uwcosim.run.progress.RunProgress`), hooked to
+    the first compile of the Numba kernels, and the report stage announced as a stage."""
+
+    def __init__(self, loaded, args) -> None:
+        from uwcosim.core import jit
+        from uwcosim.run.progress import RunProgress
+
+        run = loaded.spec.run
+        step = getattr(run, "step", None)
+        duration = getattr(run, "duration", None)
+        steps = (round(duration / step) if step and duration is not None
+                 and loaded.spec.replay is None else None)
+        self.observer = RunProgress(steps, step, float(getattr(run, "start_time", 0.0) or 0.0),
+                                    enabled=args.quiet == 0)
+        self._jit = jit
+        jit.on_compile = self.observer.compiling
+
+    def report(self, out_dir: Path, *, summary: dict):
+        from uwcosim.reports.run_report import report_run  # matplotlib: only for figures
+
+        self.observer.stage("figures and report (report.md)")
+        return report_run(out_dir, summary=summary)
+
+    def close(self) -> None:
+        self.observer.close()
+        self._jit.on_compile = None
 
 
 def _cmd_run(args) -> int:
-    from uwcosim.api import run_scenario
     from uwcosim.core.supervise import announce
+    from uwcosim.run.simulate import run_scenario
     from uwcosim.runlog.rundir import prepare_out_dir
-    from uwcosim.scenario import load_scenario
+    from uwcosim.scenario.load import load_scenario
+    from uwcosim.scenario.shipped import scenario_fmus
 
-    loaded = load_scenario(args.scenario, args.set or [], overrides_base=Path.cwd())
+    loaded = load_scenario(_scenario_path(args.scenario), args.set or [],
+                           overrides_base=Path.cwd())
+    _provide_fmus(scenario_fmus(loaded))
     out = Path(args.out) if args.out else Path("runs") / loaded.path.stem
     prepare_out_dir(out, args.force)
     announce(out)  # a supervised run: where its parent finishes it if an FMU ends the process
-    _print_result(run_scenario(loaded, out, seed=args.seed, figures=not args.no_figures))
+    progress = _Progress(loaded, args)
+    try:
+        result = run_scenario(loaded, out, seed=args.seed, figures=not args.no_figures,
+                              progress=progress.observer, report=progress.report)
+    finally:
+        progress.close()
+    _print_result(result)
     return 0
 
 
@@ -103,16 +194,29 @@ def _cmd_schema(args) -> int:
 
 
 def _cmd_demo(args) -> int:
-    from uwcosim.demo import run_demo
+    from uwcosim.demo import prepare_cache
+    from uwcosim.scenario.load import load_scenario
 
-    _print_result(run_demo(Path(args.out), args.set or [], seed=args.seed))
+    loaded = load_scenario(prepare_cache(), args.set or [], overrides_base=Path.cwd())
+    progress = _Progress(loaded, args)
+    try:
+        from uwcosim.run.simulate import run_scenario
+
+        result = run_scenario(loaded, Path(args.out), seed=args.seed,
+                              progress=progress.observer, report=progress.report)
+    finally:
+        progress.close()
+    _print_result(result)
     return 0
 
 
 def _cmd_export(args) -> int:
     from uwcosim.export import export_csv, export_mat
 
-    print((export_csv if args.format == "csv" else export_mat)(args.run, args.out))
+    if args.format == "csv":
+        print(export_csv(args.run, args.out, units=not args.no_units))
+    else:
+        print(export_mat(args.run, args.out))
     return 0
 
 
@@ -126,6 +230,19 @@ def _cmd_list(args) -> int:
         return 0
     print({"models": catalog.list_models, "scenarios": catalog.list_scenarios,
            "fmus": catalog.list_fmus}[args.what]())
+    return 0
+
+
+def _cmd_docs(args) -> int:
+    from uwcosim.core.paths import docs_dir
+
+    where = docs_dir()
+    if not where.is_dir():
+        raise UwcosimError(f"{where}: docs folder not found (a broken installation: reinstall "
+                           f"uwcosim)")
+    print(f"docs: {where}")
+    for p in sorted(where.rglob("*.md")):
+        print(f"  {p.relative_to(where)}")
     return 0
 
 
@@ -169,6 +286,11 @@ def _cmd_fmu_validate(args) -> int:
         print(f"{args.fmu}: {p}", file=sys.stderr)
     if not problems:
         print(f"{args.fmu}: valid")
+    else:
+        print(f"{args.fmu}: not valid: {len(problems)} problem{'s' * (len(problems) != 1)} "
+              f"(a conformance check, exit 1 on any finding; 'uwcosim fmu check' lists the "
+              f"findings of the FMI standard's rules as warnings, as the master does not rely "
+              f"on them, and may still call the FMU compatible)", file=sys.stderr)
     return 1 if problems else 0
 
 
@@ -207,7 +329,16 @@ def _cmd_baseline(args) -> int:
         from uwcosim.regress.compare import check_tolerances
 
         check_tolerances(args.rtol, args.atol, args.ttol)
-    scenarios = [Path(s) for s in args.scenarios] or shipped_scenarios(args.scenario_dir)
+    from uwcosim.scenario.load import load_scenario
+    from uwcosim.scenario.shipped import scenario_fmus
+
+    scenarios = [_scenario_path(s) for s in args.scenarios] or [
+        _scenario_path(str(p)) for p in shipped_scenarios(args.scenario_dir)]
+    if args.baseline_command == "check" and not any(Path(args.dir).glob("*.parquet")):
+        raise UwcosimError(f"{args.dir}: no baseline logs (*.parquet) to check against; write "
+                           f"them with 'uwcosim baseline update' or give --dir")
+    _provide_fmus(p for sc in scenarios if sc.is_file()
+                  for p in scenario_fmus(load_scenario(sc, getattr(args, "set", None) or [])))
     print(f"baselines: {args.dir}", file=sys.stderr)
     bad = 0
     for sc in scenarios:
@@ -284,8 +415,18 @@ def _cmd_bound(args) -> int:
 def _cmd_campaign(args) -> int:
     from uwcosim.campaign import load_campaign
     from uwcosim.campaign.driver import run_campaign
+    from uwcosim.scenario.load import load_scenario
+    from uwcosim.scenario.shipped import scenario_fmus
 
-    campaign = load_campaign(args.spec)
+    campaign = load_campaign(_scenario_path(args.spec, campaign=True))
+    # every variant's FMUs: built if missing, checked present before any worker starts
+    fmus = {p for v in campaign.spec.variants
+            for p in scenario_fmus(load_scenario(campaign.resolve(v.scenario), v.set))}
+    _provide_fmus(sorted(fmus))
+    absent = sorted(p for p in fmus if not p.exists())
+    if absent:
+        raise FMUError(f"{absent[0]}: FMU not found (variant scenarios of {campaign.path} need "
+                       f"{len(absent)} missing FMU{'s' * (len(absent) != 1)}; nothing was run)")
     out = Path(args.out) if args.out else Path("runs") / f"campaign_{campaign.path.stem}"
     summary = run_campaign(campaign, out, runs=args.runs, workers=args.workers,
                            scheduler=args.scheduler, resume=args.resume)
@@ -325,6 +466,11 @@ def walk_parsers(parser: argparse.ArgumentParser) -> Iterator[argparse.ArgumentP
             for sub in dict.fromkeys(action.choices.values()):
                 yield from walk_parsers(sub)
 
+
+#: the default tolerances of ``regress`` and ``baseline check``: those of
+#: :mod:`uwcosim.regress.compare` (``tests/test_cli_everyday.py`` keeps them equal), written here
+#: so that building the parser imports no comparison code (numpy, matplotlib)
+DEFAULT_RTOL, DEFAULT_ATOL, DEFAULT_TTOL = 1e-6, 1e-9, 0.0
 
 SET_HELP = ("override any scenario key with a TOML value, e.g. --set run.duration=100 "
             "(repeatable); a relative file path given here is relative to the current folder, "
@@ -387,6 +533,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="MATLAB v5 .mat: data, columns, log struct, metadata")
     e.add_argument("--out", default=None,
                    help="output file (default: the log's path with .csv or .mat)")
+    e.add_argument("--no-units", action="store_true",
+                   help="CSV: the bare column names as header (default: 'name [unit]' for "
+                   "every column with a unit)")
     e.set_defaults(func=_cmd_export)
 
     ls = sub.add_parser("list", help="list estimators (where each comes from, settings and "
@@ -397,6 +546,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="estimators: also the filters of yours this scenario names by "
                     "'package.module:ClassName'")
     ls.set_defaults(func=_cmd_list)
+
+    dc = sub.add_parser("docs", help="print where the docs are (a checkout's docs/, or the "
+                        "copy an installed wheel carries) and list them")
+    dc.set_defaults(func=_cmd_docs)
 
     d = sub.add_parser("demo", help="build the FMUs into the user cache folder "
                        "($XDG_CACHE_HOME/uwcosim) and run the TAN scenario")
@@ -421,11 +574,14 @@ def build_parser() -> argparse.ArgumentParser:
     i = fs.add_parser("info", help="variables and capabilities of an FMU")
     i.add_argument("fmu", help="FMU archive (.fmu)")
     i.set_defaults(func=_cmd_fmu_info)
-    v = fs.add_parser("validate", help="validate an FMU (exit 1 if it has problems)")
+    v = fs.add_parser("validate", help="FMI conformance of an FMU: archive, fmpy's validation of "
+                      "the standard's rules, a binary for this platform (exit 1 on any finding; "
+                      "'fmu check' says whether uwcosim can run it)")
     v.add_argument("fmu", help="FMU archive (.fmu)")
     v.set_defaults(func=_cmd_fmu_validate)
     k = fs.add_parser("check", help="can this FMU play a role? validation, capabilities, "
-                      "variable map, smoke run (exit 1 if incompatible)")
+                      "variable map, smoke run (exit 1 if incompatible; findings of the FMI "
+                      "standard's rules are warnings)")
     k.add_argument("fmu", help="FMU archive (.fmu)")
     k.add_argument("--role", choices=["vehicle"], default=None,
                    help="check the roles of this part (and smoke-run a vehicle)")
@@ -474,8 +630,6 @@ def build_parser() -> argparse.ArgumentParser:
                     help="where bound.parquet and bound.json go (default runs/bound_<name>)")
     bd.set_defaults(func=_cmd_bound)
 
-    from uwcosim.regress.compare import DEFAULT_ATOL, DEFAULT_RTOL, DEFAULT_TTOL
-
     def tolerances(parser) -> None:
         parser.add_argument("--rtol", type=float, default=DEFAULT_RTOL,
                             help="value tolerance relative to max|baseline| of each signal")
@@ -503,7 +657,8 @@ def build_parser() -> argparse.ArgumentParser:
         q = bls.add_parser(name, help=text)
         q.add_argument("scenarios", nargs="*", help="scenario files (default: every *.toml "
                        "of --scenario-dir)")
-        q.add_argument("--dir", default=str(baselines_dir()), help="baseline folder")
+        q.add_argument("--dir", default=str(baselines_dir(for_update=name == "update")),
+                       help="baseline folder")
         q.add_argument("--scenario-dir", default=str(scenarios_dir()),
                        help="folder of the shipped scenarios")
         if name == "update":
@@ -551,12 +706,44 @@ def _supervised(args) -> int:
     return code
 
 
+def _leave(code: int) -> None:
+    """The command line's exit once every file is closed: flush, run the exit handlers
+    (temporary folders, logging), then end the process without the interpreter's teardown
+    (the garbage collection of every module: 0.3-0.9 s after a run). ``UWCOSIM_FAST_EXIT=0``
+    keeps the normal exit (a profiler's or coverage's own exit handlers still run either way)."""
+    import atexit
+    import os
+
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    if os.environ.get("UWCOSIM_FAST_EXIT", "1") == "0":
+        sys.exit(code)
+    atexit._run_exitfuncs()
+    os._exit(code)
+
+
 def main(argv: list[str] | None = None, supervise: bool | None = None) -> int:
-    """The command line. ``supervise`` (default: when called as the ``uwcosim`` command,
-    ``argv`` None): ``run`` in a child process (:mod:`uwcosim.core.supervise`)."""
+    """The command line: ``argv`` (default ``sys.argv[1:]``); the exit status. Called without
+    ``argv`` (the ``uwcosim`` script, ``python -m uwcosim``) it runs ``run`` in a supervised
+    child process (``supervise``, :mod:`uwcosim.core.supervise`) and ends the process itself
+    after a ``run``, ``demo`` or ``campaign`` (:func:`_leave`)."""
+    code = _main(argv, supervise)
+    if argv is None and _COMMAND[0] in ("run", "demo", "campaign"):
+        _leave(code)
+    return code
+
+
+_COMMAND = [""]  # the command _main parsed last
+
+
+def _main(argv: list[str] | None, supervise: bool | None) -> int:
     from uwcosim.core.runguard import install_cli_handlers
 
     args = build_parser().parse_args(argv)
+    _COMMAND[0] = args.command
     level = max(logging.DEBUG, min(logging.WARNING + 10 * (args.quiet - args.verbose),
                                    logging.ERROR))
     logging.basicConfig(format="%(levelname)s %(name)s: %(message)s")

@@ -1,6 +1,9 @@
 """Export a run's log to CSV (pyarrow's writer) or MATLAB ``.mat`` (scipy's ``savemat``).
 
-CSV: one header row with the log's column names (``time`` first, quoted), one row per
+CSV: one header row with the log's column names (``time`` first, quoted), each followed by its
+unit in brackets when it has one (``"time [s]"``, ``"vehicle.x [m]"``, ``"est.ekf.var.vx
+[m2/s2]"``, the flags bare; the units of :mod:`uwcosim.runlog.units`; ``units=False``: the bare
+names), one row per
 communication step, floats with full precision, NaN as ``nan``, booleans as ``true``/``false``
 (as pyarrow writes them).
 
@@ -24,6 +27,7 @@ import pyarrow.parquet as pq
 
 from uwcosim.core.errors import UwcosimError
 from uwcosim.runlog.parquet import journal_path, read_journal
+from uwcosim.runlog.units import labelled, units_of
 
 MATLAB_NAME_MAX = 63
 
@@ -65,12 +69,16 @@ def matlab_names(columns: list[str]) -> list[str]:
     return out
 
 
-def export_csv(run: str | Path, out: str | Path | None = None) -> Path:
-    """Write the log of ``run`` (a run directory or a ``.parquet`` log) as CSV."""
+def export_csv(run: str | Path, out: str | Path | None = None, units: bool = True) -> Path:
+    """Write the log of ``run`` (a run directory or a ``.parquet`` log) as CSV; ``units``: the
+    header names ``name [unit]``."""
     import pyarrow.csv as pcsv
 
     path, table = _read(run)
     out = Path(out) if out is not None else path.with_suffix(".csv")
+    if units:
+        known = units_of(table.schema)
+        table = table.rename_columns([labelled(c, known) for c in table.column_names])
     try:
         pcsv.write_csv(table.replace_schema_metadata(None), out)
     except OSError as exc:

@@ -36,6 +36,11 @@ import os
 ENABLED = (importlib.util.find_spec("numba") is not None
            and os.environ.get("UWCOSIM_NUMBA", "1") != "0")
 
+#: ``on_compile(name)``, if set: called when Numba starts compiling a kernel because its
+#: on-disk cache has no entry for it (after an install or an update: 1-3 min in all, once), not
+#: when it loads one (``uwcosim run`` says what it is doing); looked up at each event
+on_compile = None
+
 # Every kernel registers here (python function, fastmath flags, first-call stub) until the
 # first call of any kernel compiles them all.
 _PLAIN: list[tuple] = []
@@ -47,6 +52,7 @@ def _compile_all() -> None:
     the first-call stubs (their own names and the names they import from each other)."""
     import numba  # optional dependency: imported at the first kernel call (about 0.5 s)
 
+    listen(_announce)  # once: _PLAIN is empty after this
     compiled = {}
     spaces = {}
     for fn, fastmath, stub in _PLAIN:
@@ -59,6 +65,28 @@ def _compile_all() -> None:
             if hit is not None and hit[0] is value:
                 g[name] = hit[1]
     _PLAIN.clear()
+
+
+def _announce(kernel: str) -> None:
+    hook = on_compile
+    if hook is not None:
+        hook(kernel)
+
+
+def listen(hook) -> None:
+    """Call ``hook(kernel name)`` on Numba's compile events (a cache miss; a load from the
+    cache raises none)."""
+    from numba.core import event
+
+    class CompileListener(event.Listener):
+        def on_start(self, ev) -> None:
+            dispatcher = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
+            hook(getattr(getattr(dispatcher, "py_func", None), "__qualname__", "kernel"))
+
+        def on_end(self, ev) -> None:
+            pass
+
+    event.register("numba:compile", CompileListener())
 
 
 def _register(fn, fastmath):

@@ -6,8 +6,13 @@
   carries as package data (``uwcosim/_data/scenarios``, put there by ``setup.py``);
 - :func:`cache_dir`: ``$XDG_CACHE_HOME/uwcosim`` (default ``~/.cache/uwcosim``), where
   ``uwcosim demo`` builds the FMUs;
-- :func:`baselines_dir`: ``<checkout>/tests/baselines``, or ``$XDG_DATA_HOME/uwcosim/baselines``
-  (default ``~/.local/share/uwcosim/baselines``) for an installed wheel;
+- :func:`shipped_scenario`: a shipped scenario or campaign spec by its name (``tan_terrain``,
+  ``smoke``, ``campaigns/smoke``), as ``uwcosim run NAME`` and ``uwcosim campaign NAME`` take it;
+- :func:`baselines_dir`: ``<checkout>/tests/baselines``; for an installed wheel
+  ``$XDG_DATA_HOME/uwcosim/baselines`` (default ``~/.local/share/uwcosim/baselines``) once
+  ``uwcosim baseline update`` wrote there, else the baselines the wheel carries
+  (``uwcosim/_data/baselines``);
+- :func:`docs_dir`: ``<checkout>/docs``, or the copy a wheel carries (``uwcosim/_data/docs``);
 - the project's own FMUs (:data:`PROJECT_MODELS`, built by ``uwcosim fmu build`` into ``fmus/``
   or by ``uwcosim demo`` into the cache folder): their file names (:func:`fmu_file_name`) and
   :func:`is_project_fmu`, which lets the FMI layer say how to build a missing one.
@@ -22,6 +27,10 @@ from pathlib import Path
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 
 
+#: the package data a wheel carries (``setup.py`` copies scenarios, baselines and docs there)
+DATA_DIR = PACKAGE_DIR / "_data"
+
+
 def project_root() -> Path | None:
     root = PACKAGE_DIR.parent
     if (root / "pyproject.toml").is_file() and (root / "scenarios").is_dir():
@@ -31,7 +40,35 @@ def project_root() -> Path | None:
 
 def scenarios_dir() -> Path:
     root = project_root()
-    return root / "scenarios" if root is not None else PACKAGE_DIR / "_data" / "scenarios"
+    return root / "scenarios" if root is not None else DATA_DIR / "scenarios"
+
+
+def shipped_scenario(name: str | Path) -> Path | None:
+    """The shipped scenario or campaign spec called ``name`` (``tan_terrain``,
+    ``tan_terrain.toml``, ``smoke``, ``campaigns/smoke``; scenarios first), or None when
+    ``name`` is an existing file or names nothing shipped."""
+    text = str(name)
+    if Path(text).exists() or text.startswith(("/", ".", "~")) or not text:
+        return None
+    stem = text[:-5] if text.endswith(".toml") else text
+    if "." in stem or "\\" in stem:
+        return None
+    base = scenarios_dir()
+    for candidate in (base / f"{stem}.toml", base / "campaigns" / f"{stem}.toml"):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def shipped_names(campaigns: bool = False) -> list[str]:
+    """The names of the shipped scenarios (or campaign specs), sorted."""
+    base = scenarios_dir() / "campaigns" if campaigns else scenarios_dir()
+    return sorted(p.stem for p in base.glob("*.toml"))
+
+
+def docs_dir() -> Path:
+    root = project_root()
+    return root / "docs" if root is not None else DATA_DIR / "docs"
 
 
 def _xdg(var: str, default: str) -> Path:
@@ -43,11 +80,17 @@ def cache_dir() -> Path:
     return _xdg("XDG_CACHE_HOME", ".cache") / "uwcosim"
 
 
-def baselines_dir() -> Path:
+def baselines_dir(for_update: bool = False) -> Path:
+    """Where the golden baselines are read (``for_update``: written). A checkout's
+    ``tests/baselines``; for a wheel the user's data folder, which ``baseline update`` writes,
+    read once it holds baselines, else the baselines the wheel carries."""
     root = project_root()
     if root is not None:
         return root / "tests" / "baselines"
-    return _xdg("XDG_DATA_HOME", ".local/share") / "uwcosim" / "baselines"
+    user = _xdg("XDG_DATA_HOME", ".local/share") / "uwcosim" / "baselines"
+    if for_update or any(user.glob("*.parquet")) or not (DATA_DIR / "baselines").is_dir():
+        return user
+    return DATA_DIR / "baselines"
 
 
 #: the models of the project's own FMUs: the keys of ``uwcosim.fmu.specs.MODELS`` (one

@@ -150,12 +150,33 @@ class DeadReckoning(ExtendedKalmanFilter):
 
     Written as the Kalman filter whose only measurements are the velocity components
     (names ending in ``vx_m``/``vy_m``), so its covariance shows the unbounded position drift.
+    On a terrain model that offers it (``model.without_terrain()``, the TAN model) and with the
+    DVL rows as its measurements, it runs on that model and is given those rows of ``z``: no
+    terrain ``h``/``H`` evaluated and dropped (the same numbers).
     """
 
     class Settings(FilterSettings):
         measurements: Measurements = measurements_field(
             "measurement components to integrate (default: the velocities)")
         compiled: StrictBool = compiled_field()
+
+    def __init__(self, model, x0, P0, **settings) -> None:
+        names = list(model.measurement_names)
+        used = settings.get("measurements") or [n for n in names if n.endswith(("vx_m", "vy_m"))]
+        narrow = getattr(model, "without_terrain", None)
+        #: the rows of the full model's ``z`` this filter is given (None: all of them)
+        self.rows = None
+        if narrow is not None and getattr(model, "terrain", None) is not None and \
+                [names.index(n) for n in used if n in names] == [0, 1] and len(used) == 2:
+            model = narrow()
+            self.rows = np.array([0, 1])
+        super().__init__(model, x0, P0, **settings)
+
+    def update(self, z, mask=None) -> None:
+        if self.rows is not None:
+            z = None if z is None else np.asarray(z, dtype=float)[self.rows]
+            mask = None if mask is None else np.asarray(mask)[self.rows]
+        super().update(z, mask)
 
     def measurements_used(self) -> list[str]:
         """The ``measurements`` setting, by default the velocity components."""

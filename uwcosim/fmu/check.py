@@ -51,6 +51,8 @@ class CheckReport:
     lines: list[str] = field(default_factory=list)
     problems: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    #: findings of the FMI standard's rules (fmpy's ``validate_fmu``), among the warnings
+    findings: int = 0
 
     @property
     def ok(self) -> bool:
@@ -65,6 +67,11 @@ class CheckReport:
             out.append(f"  result: INCOMPATIBLE ({len(self.problems)} problem"
                        f"{'s' if len(self.problems) > 1 else ''})")
             out += [f"    - {p}" for p in self.problems]
+        elif self.findings:
+            out.append(f"  result: compatible, with {self.findings} finding"
+                       f"{'s' * (self.findings != 1)} against the FMI standard (warnings: the "
+                       f"master does not rely on them; 'uwcosim fmu validate', a conformance "
+                       f"check, exits 1 on them)")
         else:
             out.append("  result: compatible")
         return "\n".join(out)
@@ -283,6 +290,7 @@ def check_fmu(path: str | Path, role: str | None = "vehicle", map_file: str | No
     except Exception as exc:  # noqa: BLE001 - fmpy raises bare Exceptions
         findings = [f"validation failed ({exc})"]
     rep.warnings += [f"fmpy validation: {f}" for f in findings]
+    rep.findings = len(findings)
     rep.lines.append("  validation        " + (
         "ok (fmpy validate_fmu)" if not findings else
         f"{len(findings)} finding(s) of fmpy validate_fmu (see warnings)"))

@@ -59,7 +59,7 @@ from uwcosim.core.errors import AlgebraicLoopError, FMUError, ScenarioError, Uwc
 from uwcosim.fmi import vartypes
 from uwcosim.fmi.adapter import FMUAdapter
 from uwcosim.fmi.proxy import ProxyAdapter
-from uwcosim.fmi.varmap import ROLES, load_entries
+from uwcosim.fmi.varmap import ROLES, fmu_unit, load_entries
 from uwcosim.master.algorithms import Unit, build_unit, jacobi_keeps, plan, start_value
 from uwcosim.master.checks import SystemChecks
 from uwcosim.master.measurement import Measurement, SensorBank
@@ -399,6 +399,24 @@ class Master(SystemChecks):
         if var is None:
             return np.dtype(np.float64)
         return np.dtype(vartypes.numpy_dtype(var))
+
+    def signal_unit(self, name: str) -> str | None:
+        """The unit of a signal's bus values (an array element: its array's): an FMU output's
+        or observed variable's declared unit (its own or its declared type's; a variable map's
+        role: the role's unit), a source's the unit of the FMU input it drives; None when
+        nothing declares one."""
+        base = name.split("[", 1)[0]
+        fmu, _, var = base.partition(".")
+        ad = self.adapters.get(fmu)
+        if ad is not None and var in ad.variables:
+            alias = ad.varmap.aliases.get(var)
+            if alias is not None and alias.our_unit:
+                return alias.our_unit
+            return fmu_unit(ad.variables[var])
+        for (f, v), by in self._wired_by.items():
+            if base in by:
+                return self.signal_unit(f"{f}.{v}")
+        return None
 
     # -- running ----------------------------------------------------------------------------
     def initialize(self, start_overrides: dict[str, dict] | None = None) -> None:

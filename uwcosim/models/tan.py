@@ -255,7 +255,8 @@ class TANModel:
     linear = False
     Q_depends_on_x = False  # Q = G diag(psd/dt) G' depends on (u, dt) only (no control noise)
 
-    def __init__(self, base: CasadiModel) -> None:
+    def __init__(self, base: CasadiModel, dvl_only: bool = False) -> None:
+        """``dvl_only``: measure the two DVL rows of ``base`` only (:meth:`without_terrain`)."""
         self.symbolic = base  # the same model as CasADi expressions (grid filters use them)
         self.nx, self.nu, self.nw, self.nz = base.nx, base.nu, base.nw, base.nz
         self.state_names = base.state_names
@@ -267,11 +268,21 @@ class TANModel:
             self.Q_depends_on_x = True  # the heading noise enters through Rot'(psi) v
         self.R = base.R
         self.terrain = getattr(base, "terrain", None)
+        if dvl_only:
+            self.nz, self.measurement_names = 2, tuple(base.measurement_names[:2])
+            self.R = np.asarray(base.R)[:2, :2].copy()
+            self.terrain = None
         self._fast_terrain = FastTerrain(self.terrain) if self.terrain is not None else None
         self._H0 = np.zeros((self.nz, 4))  # the constant rows of H (DVL: the velocities)
         self._H0[0, 2] = self._H0[1, 3] = 1.0
         self._key: tuple | None = None
         self._sqrt_dt: float | None = None
+
+    def without_terrain(self) -> TANModel:
+        """The same model measuring the DVL velocities only (``nz = 2``, the depth row and the
+        terrain dropped): for a filter that uses only them (dead reckoning), which then does no
+        terrain lookup. The same numbers in its rows of ``h``, ``H`` and ``R``."""
+        return TANModel(self.symbolic, dvl_only=True)
 
     def _mats(self, u, dt: float) -> list:
         """``[F, G, b, Q, Q_factor]`` for ``(u, dt)``; the last two are filled on demand."""

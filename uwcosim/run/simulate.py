@@ -74,6 +74,7 @@ from uwcosim.runlog.rundir import (
     prepare_out_dir,
     write_json,
 )
+from uwcosim.runlog.units import layout_units
 from uwcosim.scenario.geo import scenario_frame
 from uwcosim.scenario.load import load_scenario
 from uwcosim.scenario.loaded import LoadedScenario
@@ -400,8 +401,10 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                                "trajectory_axes": spec.output.trajectory_axes}
             slots = {c: master.slot(c, "log.signals") for c in signals}
             dtypes = {c: master.signal_dtype(c) for c in signals}
+            # field metadata "unit" (a replay's recording declares none)
+            units = layout_units(layout, getattr(master, "signal_unit", lambda _: None), truth)
             logger = RunLogger(log_path, layout.columns, layout.flags, meta,
-                               spec.log.chunk_steps, dtypes)
+                               spec.log.chunk_steps, dtypes, units)
             recorder = LogRecorder(
                 layout, logger, [slots[c] for c in signals],
                 [slots[c] for c in logger.exact_columns], master.exact,

@@ -24,12 +24,17 @@ import os
 import threading
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
 from uwcosim.core.errors import UwcosimError
+from uwcosim.runlog.units import units_of, with_units
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: dtypes whose values are passed exactly (not through the float64 row): String, Int64, UInt64
 EXACT = (np.dtype(object), np.dtype(np.int64), np.dtype(np.uint64))
@@ -40,16 +45,31 @@ def arrow_type(dtype: np.typing.DTypeLike) -> pa.DataType:
     return pa.string() if dtype == np.dtype(object) else pa.from_numpy_dtype(dtype)
 
 
+def arrow_array(values: np.ndarray) -> pa.Array:
+    """A 1-D numpy array of numbers or booleans as an Arrow array without nulls (NaN stays NaN),
+    the values ``pa.array(values)`` gives, built from its buffers: ``pa.array`` imports pandas
+    on its first call (to look for pandas objects), 0.3-0.7 s of a short run."""
+    values = np.ascontiguousarray(values)
+    if values.dtype == np.bool_:
+        data = np.packbits(values, bitorder="little")
+        return pa.Array.from_buffers(pa.bool_(), len(values), [None, pa.py_buffer(data)])
+    return pa.Array.from_buffers(pa.from_numpy_dtype(values.dtype), len(values),
+                                 [None, pa.py_buffer(values)])
+
+
 class RunLogger:
     """Collects named columns per step and writes them to ``path``.
 
     ``dtypes`` gives the numpy dtype of the columns that are not float64; the values of those in
     :data:`EXACT` come through ``append(..., exact=[...])`` in column order, the others through
-    the float64 row (exact for int32 and smaller, bool and float32).
+    the float64 row (exact for int32 and smaller, bool and float32). ``units``: the unit of
+    each column that has one, written as its field metadata ``unit``
+    (:mod:`uwcosim.runlog.units`).
     """
 
     def __init__(self, path: Path, columns: list[str], bool_columns: list[str],
-                 metadata: dict, chunk: int = 1000, dtypes: dict | None = None) -> None:
+                 metadata: dict, chunk: int = 1000, dtypes: dict | None = None,
+                 units: dict[str, str] | None = None) -> None:
         self.path = Path(path)
         self.columns = ["time", *columns]
         self.bool_columns = list(bool_columns)
@@ -69,6 +89,7 @@ class RunLogger:
         self._journal = self._journal_file = None
         fields = [pa.field(c, arrow_type(self.dtypes.get(c, np.float64))) for c in self.columns]
         fields += [pa.field(c, pa.bool_()) for c in self.bool_columns]
+        fields = [with_units(f, units or {}) for f in fields]
         self.schema = pa.schema(fields, metadata={"uwcosim": json.dumps(metadata, sort_keys=True)})
         try:
             self._writer = pq.ParquetWriter(self.path, self.schema, compression="zstd")
@@ -108,10 +129,10 @@ class RunLogger:
             if c in exact:
                 arrays.append(pa.array(exact[c], type=arrow_type(dtype)))
             elif dtype is not None:
-                arrays.append(pa.array(self._f[:n, i].astype(dtype)))
+                arrays.append(arrow_array(self._f[:n, i].astype(dtype)))
             else:
-                arrays.append(pa.array(self._f[:n, i]))
-        arrays += [pa.array(self._b[:n, i]) for i in range(len(self.bool_columns))]
+                arrays.append(arrow_array(self._f[:n, i]))
+        arrays += [arrow_array(self._b[:n, i]) for i in range(len(self.bool_columns))]
         self._e = [[] for _ in self.exact_columns]
         table = pa.Table.from_arrays(arrays, schema=self.schema)
         self._writer.write_table(table)
@@ -132,6 +153,29 @@ class RunLogger:
                 self._journal.close()
                 self._journal_file.close()
                 os.unlink(self.journal_path)
+
+
+def numpy_column(column: pa.ChunkedArray) -> np.ndarray:
+    """A column as numpy, the values ``column.to_numpy()`` gives; read from the buffers for
+    numbers and booleans without nulls (``to_numpy`` imports pandas on its first call)."""
+    t = column.type
+    if column.null_count or not (pa.types.is_floating(t) or pa.types.is_integer(t)
+                                 or pa.types.is_boolean(t)):
+        return column.to_numpy()
+    if pa.types.is_boolean(t):
+        dtype = np.dtype(bool)
+    else:
+        kind = "f" if pa.types.is_floating(t) else "i" if pa.types.is_signed_integer(t) else "u"
+        dtype = np.dtype(f"{kind}{t.bit_width // 8}")
+    parts = []
+    for chunk in column.chunks:
+        buf = chunk.buffers()[1]
+        if dtype == np.dtype(bool):
+            bits = np.unpackbits(np.frombuffer(buf, np.uint8), bitorder="little")
+            parts.append(bits[chunk.offset:chunk.offset + len(chunk)].astype(bool))
+        else:
+            parts.append(np.frombuffer(buf, dtype, len(chunk), chunk.offset * dtype.itemsize))
+    return np.concatenate(parts) if parts else np.empty(0, dtype)
 
 
 def journal_path(path: str | Path) -> Path:
@@ -160,8 +204,9 @@ def read_journal(path: str | Path) -> pa.Table:
 
 
 def _read_table(path: Path) -> pa.Table:
-    try:
-        return pq.read_table(path)
+    try:  # ParquetFile: pq.read_table goes through pyarrow.dataset, which imports pandas
+        with pq.ParquetFile(path) as f:
+            return f.read()
     except Exception as exc:  # noqa: BLE001 - pyarrow raises several types for bad files
         journal = journal_path(path)
         if journal.is_file():  # the writer was killed before it wrote the footer
@@ -178,13 +223,40 @@ def recover_log(path: str | Path) -> int:
     return table.num_rows
 
 
-def read_log(path: str | Path) -> tuple[dict[str, np.ndarray], dict]:
-    """Read a run log: ``(columns as numpy arrays, metadata dict)``. A log whose writer was
-    killed (no Parquet footer) is read from its journal: every finished row group."""
+def read_log(path: str | Path, as_dataframe: bool = False
+             ) -> tuple[dict[str, np.ndarray], dict] | pd.DataFrame:
+    """Read a run log: ``(columns as numpy arrays, metadata dict)``; with ``as_dataframe`` a
+    ``pandas.DataFrame`` (pandas: the optional extra ``uwcosim[pandas]``) with the columns'
+    units in ``df.attrs["units"]`` (``{column: unit}``) and the metadata in
+    ``df.attrs["uwcosim"]``. A log whose writer was killed (no Parquet footer) is read from its
+    journal: every finished row group."""
     path = Path(path)
     if not path.is_file():
         raise UwcosimError(f"{path}: run log not found")
     table = _read_table(path)
     meta = table.schema.metadata or {}
     info = json.loads(meta.get(b"uwcosim", b"{}"))
-    return {name: table.column(name).to_numpy() for name in table.column_names}, info
+    if as_dataframe:
+        return to_dataframe(table, info)
+    return {name: numpy_column(table.column(name)) for name in table.column_names}, info
+
+
+def read_units(path: str | Path) -> dict[str, str]:
+    """``{column: unit}`` of a run log (the columns that carry a unit)."""
+    path = Path(path)
+    if not path.is_file():
+        raise UwcosimError(f"{path}: run log not found")
+    return units_of(_read_table(path).schema)
+
+
+def to_dataframe(table: pa.Table, info: dict) -> pd.DataFrame:
+    """A log's table as a ``pandas.DataFrame``, its units and metadata in ``attrs``."""
+    try:
+        import pandas  # noqa: F401 - optional dependency: only the DataFrame needs it
+    except ImportError:
+        raise UwcosimError("read_log(..., as_dataframe=True) needs pandas: pip install "
+                           "'uwcosim[pandas]'") from None
+    df = table.replace_schema_metadata(None).to_pandas()
+    df.attrs["units"] = units_of(table.schema)
+    df.attrs["uwcosim"] = info
+    return df

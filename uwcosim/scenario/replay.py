@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import difflib
 import hashlib
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -268,12 +269,27 @@ def _read_table(path: Path, delimiter: str, where: str, key: str = "replay.file"
             return pq.read_table(path)
         if suffix in (".csv", ".txt", ".tsv"):
             delim = "\t" if suffix == ".tsv" and delimiter == "," else delimiter
-            return pcsv.read_csv(path, parse_options=pcsv.ParseOptions(delimiter=delim))
+            return _with_bare_names(pcsv.read_csv(
+                path, parse_options=pcsv.ParseOptions(delimiter=delim)))
     except (pa.ArrowException, OSError, ValueError) as exc:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise ScenarioError(f"{where}: key '{key}': cannot read {path} ({msg})") from None
     raise ScenarioError(f"{where}: key '{key}': {path}: unknown format {suffix!r} "
                         f"(expected .csv, .tsv or .parquet)")
+
+
+def _with_bare_names(table: pa.Table) -> pa.Table:
+    """A CSV whose header has units (``name [unit]``, as ``uwcosim export --csv`` writes it):
+    each such column also under its bare name (unless the file has that name already)."""
+    names = table.column_names
+    bare = {}
+    for n in names:
+        m = re.fullmatch(r"(.+) \[[^\[\]]*\]", n)
+        if m and m.group(1) not in names and m.group(1) not in bare:
+            bare[m.group(1)] = table.column(n)
+    for name, col in bare.items():
+        table = table.append_column(name, col)
+    return table
 
 
 def _floats(table, name: str, key: str, where: str, path: Path, allow_bool: bool = False):

@@ -184,7 +184,7 @@ def _cmd_regress(args) -> int:
         plots = Path(args.plots) if args.plots else (
             run / "regress" if run.is_dir() else log_file(run).with_name(f"{run.stem}_regress"))
     report = compare_logs(args.run, args.baseline, args.rtol, args.atol, args.ttol,
-                          args.signals, plot_dir=plots)
+                          args.signals, plot_dir=plots, allow_shorter=args.allow_shorter)
     print(report.text())
     return 0 if report.ok else 1
 
@@ -436,6 +436,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--plots", default=None,
                    help="folder of the diff plots (default: RUN/regress)")
     g.add_argument("--no-plots", action="store_true", help="no diff plots")
+    g.add_argument("--allow-shorter", action="store_true",
+                   help="pass a baseline that covers less time than the run (compares the "
+                   "common span, with a warning line); by default different spans fail")
     g.set_defaults(func=_cmd_regress)
 
     bl = sub.add_parser("baseline", help="golden baselines of the shipped scenarios")

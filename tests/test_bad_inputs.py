@@ -7,6 +7,7 @@ TOML values in a scenario or a ``--set`` never give a traceback."""
 from __future__ import annotations
 
 import json
+import os
 import re
 import signal
 import zipfile
@@ -118,6 +119,23 @@ def files(tmp_path_factory, project_fmus) -> dict[str, Path]:
     f["decreasing"] = _log(d / "decreasing.parquet", {"time": t[::-1], "x": t})
     (d / "notparquet.parquet").write_text("hello")
     f["notparquet"] = d / "notparquet.parquet"
+    # issue 24: deep nesting, odd scenario paths, outputs that cannot be written
+    (d / "deep_arrays.toml").write_text("x = " + "[" * 500 + "]" * 500 + "\n")
+    (d / "deep_tables.toml").write_text("x = " + "{a = " * 2000 + "1" + "}" * 2000 + "\n")
+    (d / "folder.toml").mkdir()
+    os.mkfifo(d / "fifo.toml")
+    (d / "loop.toml").symlink_to(d / "loop.toml")
+    plain = d / "plain_run"
+    plain.mkdir()
+    _log(plain / "log.parquet", {"time": t, "x": t * 2.0}, meta)
+    ro = d / "ro_run"  # a run folder whose report.md cannot be written (root ignores modes)
+    ro.mkdir()
+    _log(ro / "log.parquet", {"time": t, "x": t * 2.0}, meta)
+    (ro / "report.md").mkdir()
+    forged = d / "forged"
+    forged.mkdir()
+    (forged / "campaign.json").write_text('{"sha256": 1, "fingerprint": "garbage"}')
+    f["forged"] = forged
     return f
 
 
@@ -283,6 +301,55 @@ CASES = [
      "/proc/x: cannot write the diff plots"),
     ("baseline-check-rtol-nan", lambda f: ["baseline", "check", "--rtol", "nan"], 2,
      "--rtol nan"),
+    # -- issue 24, item 11: deep nesting (a RecursionError and 3000 lines of traceback) --
+    ("deep-arrays-in-a-file", lambda f: ["run", str(f["dir"] / "deep_arrays.toml")], 2,
+     "deep_arrays.toml: arrays or tables nested too deeply (at most 64 levels)"),
+    ("deep-tables-in-a-file", lambda f: ["check", str(f["dir"] / "deep_tables.toml")], 2,
+     "deep_tables.toml: arrays or tables nested too deeply"),
+    ("deep-arrays-in-set", lambda f: S("run.duration=" + "[" * 500 + "]" * 500), 2,
+     "the value is nested too deeply"),
+    ("deep-tables-in-set", lambda f: S("run={" + "a={" * 2000 + "}" * 2001), 2,
+     "the value is nested too deeply"),
+    ("deep-but-parsable-in-set", lambda f: S("run.duration=" + "[" * 80 + "]" * 80), 2,
+     "the value is nested too deeply (at most 64 levels)"),
+    # -- item 12: outputs that cannot be written (PermissionError/IsADirectoryError before) --
+    ("report-out-unwritable", lambda f: ["report", str(f["dir"] / "plain_run"), "--out",
+                                         "/proc/x"], 2, "/proc/x"),
+    ("report-in-a-read-only-run", lambda f: ["report", str(f["dir"] / "ro_run")], 2,
+     "report.md: cannot read or write (Is a directory)"),
+    ("ssp-export-out-unwritable", lambda f: ["ssp", "export", str(SCEN), "--out",
+                                             "/proc/x.ssp"], 2, "/proc/x.ssp: cannot"),
+    ("ssp-export-out-a-folder", lambda f: ["ssp", "export", str(SCEN), "--out",
+                                           str(f["dir"])], 2, "Is a directory"),
+    ("fmu-build-out-unwritable", lambda f: ["fmu", "build", "--out", "/proc/x"], 2,
+     "/proc/x: cannot"),
+    ("verify-out-unwritable", lambda f: ["verify", "example1", "--out", "/proc/x"], 2,
+     "/proc/x: cannot"),
+    # -- item 13 --
+    ("export-mat-string-column", lambda f: ["export", str(f["strings"]), "--mat"], 1,
+     "column 'x' is not numeric or boolean; a .mat export holds numbers only (use --csv)"),
+    ("export-mat-out-unwritable", lambda f: ["export", str(f["run"]), "--mat", "--out",
+                                             "/proc/x.mat"], 1,
+     "/proc/x.mat: cannot write (No such file"),
+    ("campaign-scheduler-not-a-url", lambda f: ["campaign", str(f["c_ok"]), "--scheduler",
+                                                "not a url"], 2,
+     "--scheduler 'not a url': not a scheduler address (expected tcp://HOST:PORT"),
+    ("campaign-resume-forged-manifest", lambda f: ["campaign", str(f["c_ok"]), "--resume",
+                                                   "--out", str(f["forged"])], 2,
+     "campaign.json: unreadable campaign manifest"),
+    # -- item 19: a scenario path that is no file ("scenario file not found" before) --
+    ("scenario-is-a-folder", lambda f: ["run", str(f["dir"] / "folder.toml")], 2,
+     "folder.toml: is a folder; expected a scenario file"),
+    ("scenario-is-a-fifo", lambda f: ["check", str(f["dir"] / "fifo.toml")], 2,
+     "fifo.toml: not a regular file (a FIFO, socket or device)"),
+    ("scenario-symlink-loop", lambda f: ["run", str(f["dir"] / "loop.toml")], 2,
+     "loop.toml: a symbolic link to nothing (or a loop of links)"),
+    # -- item 20: input silently ignored --
+    ("set-value-with-a-newline", lambda f: S("run.duration=20\nstep=2.0"), 2,
+     "the value is not one TOML value (a new line starts key 'step')"),
+    ("set-bare-word-with-a-newline", lambda f: S("estimators.ekf.type=ekf\nx y"), 2,
+     "the value is not one TOML value (it spans lines)"),
+    ("out-empty", lambda f: ["run", str(SCEN), "--out", ""], 2, "--out '': an empty path"),
 ]
 
 

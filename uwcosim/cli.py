@@ -25,7 +25,7 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
-from uwcosim.core.errors import UwcosimError
+from uwcosim.core.errors import UwcosimError, os_error_line
 from uwcosim.core.version import __version__
 
 
@@ -483,11 +483,20 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(format="%(levelname)s %(name)s: %(message)s")
     logging.getLogger().setLevel(level)
     install_cli_handlers()
+    for name in ("out", "plots"):
+        if getattr(args, name, None) == "":
+            print(f"uwcosim: error: --{name} '': an empty path; give a folder or file name",
+                  file=sys.stderr)
+            return 2
     try:
         return int(args.func(args) or 0)
     except UwcosimError as exc:
         print(f"uwcosim: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except OSError as exc:  # an output the system refused (read-only, a folder, disk full)
+        line, code = os_error_line(exc)
+        print(f"uwcosim: error: {line}", file=sys.stderr)
+        return code
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", 2)
         print(f"uwcosim: interrupted by {signal_name(signum)}", file=sys.stderr)

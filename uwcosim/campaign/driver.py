@@ -22,7 +22,7 @@ from uwcosim.campaign.aggregate import (
     write_runs_parquet,
     write_tables,
 )
-from uwcosim.campaign.execute import pending_tasks, run_tasks
+from uwcosim.campaign.execute import check_scheduler, pending_tasks, run_tasks
 from uwcosim.campaign.spec import LoadedCampaign
 from uwcosim.core.errors import RunInterrupted, ScenarioError, UwcosimError
 from uwcosim.core.runguard import signal_name
@@ -59,10 +59,12 @@ def check_manifest(campaign: LoadedCampaign, out: Path, resume: bool) -> None:
         except (OSError, UnicodeDecodeError, json.JSONDecodeError):
             old = None
         if resume:
-            if not isinstance(old, dict) or "fingerprint" not in old:
+            try:  # a forged or damaged manifest ({"fingerprint": "garbage"}) is unreadable
+                diff = _differences(old["fingerprint"], new)
+            except (TypeError, KeyError, AttributeError):
                 raise ScenarioError(f"{path}: unreadable campaign manifest: cannot check that "
-                                    f"--resume continues the same campaign (use another --out)")
-            diff = _differences(old["fingerprint"], new)
+                                    f"--resume continues the same campaign (use another --out)"
+                                    ) from None
             if diff:
                 raise ScenarioError(f"{campaign.path}: --resume into {out}: the campaign "
                                     f"changed ({'; '.join(diff)}); use another --out")
@@ -81,6 +83,8 @@ def run_campaign(campaign: LoadedCampaign, out: Path, runs: int | None = None,
                  resume: bool = False, figures: bool = True) -> dict:
     out = Path(out)
     campaign.tasks(runs, out)  # refuses a bad --runs before anything is written
+    if scheduler:
+        check_scheduler(scheduler)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

@@ -633,3 +633,55 @@ def test_arbitrary_scenario_files_never_give_a_traceback(tmp_path, doc):
         load_scenario(p)
     except ScenarioError:
         pass
+
+
+@pytest.mark.parametrize(("item", "key", "value"), [
+    ('map={kind="file", file="maps/good.nc"}', ("map", "file"), "maps/good.nc"),
+    ('fmus.dvl={path="fmus/DVL.fmu"}', ("fmus", "dvl", "path"), "fmus/DVL.fmu"),
+    ('fmus={vehicle={path="v.fmu", map="m.npz"}}', ("fmus", "vehicle", "map"), "m.npz"),
+    ("system.ssp=sys/a.ssp", ("system", "ssp"), "sys/a.ssp"),
+    ('system={ssp="sys/a.ssp"}', ("system", "ssp"), "sys/a.ssp"),
+])
+def test_set_paths_inside_inline_tables_are_relative_to_the_current_folder(tmp_path, item, key,
+                                                                           value):
+    """Issue 24, item 17: a path in an inline table of ``--set`` was resolved against the
+    scenario's folder (the dotted forms used the current folder, as the README says)."""
+    from uwcosim.scenario.overrides import absolute_path_overrides
+    from uwcosim.scenario.overrides import apply_override
+
+    (out,) = absolute_path_overrides([item], tmp_path, "s.toml")
+    data: dict = {}
+    for keys, v in parse_overrides([out], "s.toml"):
+        apply_override(data, keys, v, "s.toml")
+    node = data
+    for k in key:
+        node = node[k]
+    assert node == str((tmp_path / value).resolve()), out
+
+
+def test_a_utf8_bom_and_a_whole_value_with_newlines_are_read(tmp_path):
+    """Issue 24, items 19 and 20: a byte-order mark gave "Invalid statement (line 1, col 1)";
+    an array over several lines is one TOML value and is read whole."""
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbf" + SCEN.read_bytes().replace(
+        b'path = "../fmus/', b'path = "' + str(ROOT / "fmus").encode() + b"/"))
+    loaded = load_scenario(bom, ["estimation.initial_std=[\n50.0,\n50.0, 1.0, 1.0]"])
+    assert loaded.spec.estimation.initial_std == [50.0, 50.0, 1.0, 1.0]
+
+
+def test_report_of_a_log_with_no_rows(tmp_path, cli):
+    """Issue 24, item 13: ``report`` of a run whose log has no rows gave an IndexError
+    traceback; it writes a report without figures."""
+    from uwcosim.runlog import RunLogger
+
+    run = tmp_path / "run"
+    run.mkdir()
+    meta = {"seed": 1, "states": ["px", "py", "vx", "vy"], "truth": ["vehicle.x", "vehicle.y",
+                                                                    "vehicle.vx", "vehicle.vy"],
+            "estimators": ["ekf"]}
+    names = ["vehicle.x", "vehicle.y", "vehicle.vx", "vehicle.vy",
+             *(f"est.ekf.{s}" for s in ("px", "py", "vx", "vy"))]
+    RunLogger(run / "log.parquet", names, [], meta, chunk=4).close()
+    status, out, err = cli(["report", str(run)])
+    assert status == 0 and "Traceback" not in err, err
+    assert (run / "report.md").is_file() and not list(run.glob("*.png"))

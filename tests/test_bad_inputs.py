@@ -646,8 +646,7 @@ def test_set_paths_inside_inline_tables_are_relative_to_the_current_folder(tmp_p
                                                                            value):
     """Issue 24, item 17: a path in an inline table of ``--set`` was resolved against the
     scenario's folder (the dotted forms used the current folder, as the README says)."""
-    from uwcosim.scenario.overrides import absolute_path_overrides
-    from uwcosim.scenario.overrides import apply_override
+    from uwcosim.scenario.overrides import absolute_path_overrides, apply_override
 
     (out,) = absolute_path_overrides([item], tmp_path, "s.toml")
     data: dict = {}

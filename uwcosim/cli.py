@@ -249,11 +249,14 @@ def _cmd_campaign(args) -> int:
     print((out / "table.md").read_text() if (out / "table.md").exists() else "no results")
     for f in summary.get("failed", []):
         print(f"failed: {f['variant']} run {f['run']}: {f['error']}", file=sys.stderr)
+    for f in summary.get("nan", []):
+        print(f"NaN: {f['variant']} run {f['run']}: estimator {f['estimator']} has a NaN "
+              f"position RMSE", file=sys.stderr)
     print(f"{summary['runs']} runs in {out} ({summary['wall_time_s']:.1f} s)")
     from uwcosim.campaign.execute import session_line
 
     print(session_line(out))
-    return 1 if summary.get("failed") else 0
+    return 1 if summary.get("failed") or summary.get("nan") else 0
 
 
 class _Parser(argparse.ArgumentParser):

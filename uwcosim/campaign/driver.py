@@ -15,6 +15,8 @@ import shutil
 import time
 from pathlib import Path
 
+import numpy as np
+
 from uwcosim.campaign.aggregate import (
     aggregate,
     read_records,
@@ -149,9 +151,30 @@ def collect(campaign_dir: Path, figures: bool = True, out: Path | None = None,
     if figures:
         figs = rmse_per_run(rows, out) + [summary_chart(rows, out)]
     title = "# Campaign results (partial)" if partial else "# Campaign results"
-    text = f"{title}\n\n{partial}{md.read_text()}\n" + "".join(
-        f"![{p.stem}]({p.name})\n\n" for p in figs)
-    (out / "report.md").write_text(text)
     failed = sorted({(r["variant"], r["run"], r["error"]) for r in rows if r["status"] != "ok"})
+    nan = sorted({(r["variant"], r["run"], r["estimator"]) for r in rows
+                  if r["status"] == "ok" and r["estimator"] and not r["diverged"]
+                  and not np.isfinite(r["rmse_position_m"])})
+    text = f"{title}\n\n{partial}{problems_text(agg, n_runs, len(failed), len(nan))}" \
+        f"{md.read_text()}\n" + "".join(f"![{p.stem}]({p.name})\n\n" for p in figs)
+    (out / "report.md").write_text(text)
     return {"runs": n_runs, "table": agg,
-            "failed": [{"variant": v, "run": i, "error": e} for v, i, e in failed]}
+            "failed": [{"variant": v, "run": i, "error": e} for v, i, e in failed],
+            "nan": [{"variant": v, "run": i, "estimator": e} for v, i, e in nan]}
+
+
+def problems_text(agg: list[dict], n_runs: int, n_failed: int, n_nan: int) -> str:
+    """The report's first words when runs failed or gave a NaN RMSE (nothing otherwise)."""
+    if not n_failed and not n_nan:
+        return ""
+    per = sorted({(r["variant"], r["failed"]) for r in agg if r["failed"]})
+    nan = [f"{r['variant']}/{r['estimator']}: {r['nan']}" for r in agg if r["nan"]]
+    parts = []
+    if n_failed:
+        parts.append(f"{n_failed} of {n_runs} runs failed (" +
+                     ", ".join(f"{v}: {k}" for v, k in per) + "; see runs.parquet, column "
+                     "error); they are not in the means")
+    if n_nan:
+        parts.append(f"{n_nan} finished runs have a NaN position RMSE (" + ", ".join(nan) +
+                     "); not in the means")
+    return "**" + "; ".join(parts) + ".**\n\n"

@@ -215,6 +215,9 @@ class FlatReader:
             edge = _Edge(c.factor, c.offset, c.suppress_units, text)
             for node in (a, b):
                 self.connector(node, text)
+            if a == b:  # it would vanish from the flattened system, leaving the input undriven
+                raise self.fail(f"{text}: connects {end_name(c.start_element, c.start_connector)}"
+                                f" to itself; expected an output and an input")
             self.adj.setdefault(a, []).append((b, edge))
             self.adj.setdefault(b, []).append((a, edge))
 

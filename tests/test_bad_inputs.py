@@ -92,6 +92,7 @@ def files(tmp_path_factory, project_fmus) -> dict[str, Path]:
     variant = f'[[variants]]\nname = "v"\nscenario = "{SCEN}"\nset = ["run.duration=5"]\n'
     specs = {
         "c_ok": f"seed = 1\nruns = 1\n{variant}",
+        "c_huge": f"seed = 1\nruns = 1000000000\n{variant}",
         "c_unknown": f"seed = 1\nrunz = 1\n{variant}",
         "c_noruns": f"seed = 1\nruns = 0\n{variant}",
         "c_seedstr": f'seed = "1"\n{variant}',
@@ -312,6 +313,27 @@ CASES = [
      "the value is nested too deeply"),
     ("deep-but-parsable-in-set", lambda f: S("run.duration=" + "[" * 80 + "]" * 80), 2,
      "the value is nested too deeply (at most 64 levels)"),
+    # -- item 8: memory estimated up front (5 GB and more before, in check as in run) --
+    ("pf-memory-run", lambda f: [*S('estimators={pf={type="pf", n_particles=1000000000}}',
+                                    "run.duration=5"), "--no-figures"], 2,
+     "key 'estimators.pf': n_particles 1000000000 needs about 313 GiB (limit 4 GiB; raise it "
+     "with UWCOSIM_MEMORY_LIMIT_GIB=N): use fewer particles"),
+    ("pf-memory-check", lambda f: ["check", str(SCEN), "--set",
+                                   'estimators={pf={type="rbpf", n_particles=1000000000}}'], 2,
+     "key 'estimators.pf': n_particles 1000000000 needs about"),
+    ("pfm-psi-memory-check", lambda f: ["check", str(SCEN), "--set",
+                                        'estimators={p={type="pfm_psi", grid_factor=1e6}}'], 2,
+     "key 'estimators.p': K 10, grid_factor 1e+06 (21093750^2 grid points) needs about"),
+    ("pfm-psi-memory-run", lambda f: [*S('estimators={p={type="pfm_psi", K=100000}}'),
+                                      "--no-figures"], 2, "use a smaller K or grid_factor"),
+    ("campaign-runs-1e9", lambda f: ["campaign", str(f["c_ok"]), "--runs", "1000000000"], 2,
+     "--runs 1000000000 (1000000000 runs of 1 variant: their tasks, futures and records) "
+     "needs about 3.81e+03 GiB (limit 4 GiB"),
+    ("campaign-runs-1e9-in-spec", lambda f: ["campaign", str(f["c_huge"])], 2,
+     "c_huge.toml: key 'runs' = 1000000000 (1000000000 runs of 1 variant"),
+    ("campaign-workers-1000-oversubscribed", lambda f: ["campaign", str(f["c_ok"]), "--workers",
+                                                        "1000", "--oversubscribe"], 2,
+     "--workers 1000 --oversubscribe (about 0.3 GiB per process) needs about 300 GiB"),
     # -- item 12: outputs that cannot be written (PermissionError/IsADirectoryError before) --
     ("report-out-unwritable", lambda f: ["report", str(f["dir"] / "plain_run"), "--out",
                                          "/proc/x"], 2, "/proc/x"),
@@ -684,3 +706,18 @@ def test_report_of_a_log_with_no_rows(tmp_path, cli):
     status, out, err = cli(["report", str(run)])
     assert status == 0 and "Traceback" not in err, err
     assert (run / "report.md").is_file() and not list(run.glob("*.png"))
+
+
+def test_campaign_workers_are_capped_at_the_cores(monkeypatch, caplog):
+    """Issue 24, item 8: ``--workers 1000`` started about 40 processes and over 5 GB without
+    finishing a run. More than the cores are capped (a warning says so) unless
+    ``--oversubscribe``; never more than the runs."""
+    from uwcosim.campaign.driver import worker_count
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    assert worker_count(1000, 50) == 2 and "capped at the 2 cores" in caplog.text
+    assert worker_count(None, 50) == 2 and worker_count(1, 50) == 1
+    assert worker_count(None, 1) == 1
+    assert worker_count(8, 50, oversubscribe=True) == 8
+    with pytest.raises(ScenarioError, match="--workers 1000 --oversubscribe"):
+        worker_count(1000, 5000, oversubscribe=True)

@@ -245,7 +245,8 @@ def _cmd_campaign(args) -> int:
     campaign = load_campaign(args.spec)
     out = Path(args.out) if args.out else Path("runs") / f"campaign_{campaign.path.stem}"
     summary = run_campaign(campaign, out, runs=args.runs, workers=args.workers,
-                           scheduler=args.scheduler, resume=args.resume)
+                           scheduler=args.scheduler, resume=args.resume,
+                           oversubscribe=args.oversubscribe)
     print((out / "table.md").read_text() if (out / "table.md").exists() else "no results")
     for f in summary.get("failed", []):
         print(f"failed: {f['variant']} run {f['run']}: {f['error']}", file=sys.stderr)
@@ -412,7 +413,10 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("campaign", help="Monte Carlo campaign (local processes or Dask)")
     c.add_argument("spec", help="campaign spec (TOML)")
     c.add_argument("--runs", type=int, default=None, help="runs per variant (default: spec)")
-    c.add_argument("--workers", type=int, default=None, help="local processes (default: cores)")
+    c.add_argument("--workers", type=int, default=None,
+                   help="local processes (default: cores; more than the cores are capped)")
+    c.add_argument("--oversubscribe", action="store_true",
+                   help="start --workers processes even above the number of cores")
     c.add_argument("--scheduler", default=None, help="Dask scheduler, e.g. tcp://host:8786")
     c.add_argument("--out", default=None,
                    help="campaign directory (default: runs/campaign_<spec name>)")

@@ -10,6 +10,7 @@ SIGTERM, SIGHUP) aggregates what finished, marks ``report.md`` partial, and rais
 from __future__ import annotations
 
 import json
+import logging
 import os
 import shutil
 import time
@@ -27,9 +28,11 @@ from uwcosim.campaign.aggregate import (
 from uwcosim.campaign.execute import check_scheduler, pending_tasks, run_tasks
 from uwcosim.campaign.spec import LoadedCampaign
 from uwcosim.core.errors import RunInterrupted, ScenarioError, UwcosimError
+from uwcosim.core.memory import memory_problem
 from uwcosim.core.runguard import signal_name
 from uwcosim.plots.campaign_figures import rmse_per_run, summary_chart
 
+log = logging.getLogger(__name__)
 MANIFEST = "campaign.json"
 
 
@@ -80,9 +83,38 @@ def check_manifest(campaign: LoadedCampaign, out: Path, resume: bool) -> None:
     os.replace(tmp, path)
 
 
+#: what a campaign worker process takes (peak RSS of a tan_terrain run: 257 MB), for the
+#: memory estimate of more workers than cores
+WORKER_BYTES = 0.3 * 2**30
+
+
+def worker_count(workers: int | None, n_tasks: int, oversubscribe: bool = False) -> int:
+    """The local processes to start: ``workers`` (default: the cores), capped at the cores
+    unless ``oversubscribe`` (then estimated against the memory limit), and at the runs."""
+    cores = os.cpu_count() or 1
+    if workers is None:
+        workers = cores
+    if workers < 1:
+        raise ScenarioError(f"--workers {workers}: expected a positive number of processes")
+    if workers > cores:
+        if not oversubscribe:
+            log.warning("--workers %d: capped at the %d cores of this machine "
+                        "(--oversubscribe starts them all)", workers, cores)
+            workers = cores
+        else:
+            why = memory_problem(workers * WORKER_BYTES, f"--workers {workers} --oversubscribe"
+                                 f" (about {WORKER_BYTES / 2**30:g} GiB per process)",
+                                 "use fewer workers")
+            if why:
+                raise ScenarioError(why)
+    return max(1, min(workers, n_tasks))
+
+
 def run_campaign(campaign: LoadedCampaign, out: Path, runs: int | None = None,
                  workers: int | None = None, scheduler: str | None = None,
-                 resume: bool = False, figures: bool = True) -> dict:
+                 resume: bool = False, figures: bool = True,
+                 oversubscribe: bool = False) -> dict:
+    """Run the campaign's pending tasks into ``out`` and collect them (see the module)."""
     out = Path(out)
     campaign.tasks(runs, out)  # refuses a bad --runs before anything is written
     if scheduler:
@@ -96,12 +128,13 @@ def run_campaign(campaign: LoadedCampaign, out: Path, runs: int | None = None,
     tasks = campaign.tasks(runs, out)
     if workers is not None and workers < 1:
         raise ScenarioError(f"--workers {workers}: expected a positive number of processes")
+    if not scheduler:
+        workers = worker_count(workers, len(tasks), oversubscribe)
     if resume or not any(results.glob("*.json")):
         check_manifest(campaign, out, resume)
     results.mkdir(exist_ok=True)
     todo = pending_tasks(tasks, results, resume, campaign.scenario_hashes)
     shutil.copyfile(campaign.path, out / "campaign.toml")
-    workers = workers if workers is not None else (os.cpu_count() or 1)
     start = time.perf_counter()
     failures = 0
     interrupted = None

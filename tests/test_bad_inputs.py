@@ -721,3 +721,26 @@ def test_campaign_workers_are_capped_at_the_cores(monkeypatch, caplog):
     assert worker_count(8, 50, oversubscribe=True) == 8
     with pytest.raises(ScenarioError, match="--workers 1000 --oversubscribe"):
         worker_count(1000, 5000, oversubscribe=True)
+
+
+def test_the_numpy_kernels_are_recorded_and_reproduced(tmp_path):
+    """Issue 24, item 20: ``UWCOSIM_NUMBA=0`` changes the log by about 1e-11 with the same
+    metadata, so the report's reproduce command did not reproduce it. The metadata says
+    ``kernels = "numpy"`` and the reproduce line starts with ``UWCOSIM_NUMBA=0``; a default run
+    has no such key (its log is unchanged)."""
+    import subprocess
+    import sys
+
+    from uwcosim.runlog import read_log
+
+    env = {**os.environ, "UWCOSIM_NUMBA": "0"}
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "uwcosim", "run", str(SCEN), "--out", str(out),
+                        "--set", "run.duration=3", "--set", 'estimators={ekf={type="ekf"}}'],
+                       capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    assert read_log(out / "log.parquet")[1]["kernels"] == "numpy"
+    assert "UWCOSIM_NUMBA=0 uwcosim run " in (out / "report.md").read_text()
+    from uwcosim.reports.reproduce import reproduce_command
+
+    assert not reproduce_command({}, {"scenario_path": "s.toml"}).startswith("UWCOSIM")

@@ -47,6 +47,7 @@ from typing import Protocol
 import numpy as np
 
 from uwcosim.core.errors import OutputError, RunInterrupted, UwcosimError
+from uwcosim.core.jit import ENABLED as JIT_ENABLED
 from uwcosim.core.runguard import run_guard, signal_name
 from uwcosim.core.version import __version__
 from uwcosim.evaluation.summary import evaluate as evaluate_run
@@ -376,6 +377,8 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                     meta["user_code"] = code
             if bathy is not None:
                 meta["map"] = MAP_FILE
+            if not JIT_ENABLED:  # the numpy forms of the kernels: other last bits than numba's
+                meta["kernels"] = "numpy"
             if master.variable_maps():  # third-party FMUs: roles, variables and conversions
                 meta["variable_maps"] = master.variable_maps()
             if isinstance(master, ReplaySource):

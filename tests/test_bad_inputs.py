@@ -88,6 +88,15 @@ def files(tmp_path_factory, project_fmus) -> dict[str, Path]:
         r"<CoSimulation [^>]*/>", '<ScheduledExecution modelIdentifier="AUVKinematics"/>',
         re.sub(r"<ModelExchange [^>]*/>", "", t)))
     remake("junkbin.fmu", binary=b"\x7fELF" + b"\0" * 60)
+    # issue 24, item 19: modelDescription.xml problems in Python's words before
+    remake("fmi1.fmu", lambda t: t.replace('fmiVersion="3.0"', 'fmiVersion="1.0"'))
+    remake("noversion.fmu", lambda t: t.replace('fmiVersion="3.0"', ""))
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(d / "latin1md.fmu", "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'description="', b'description="\xe9', 1)
+            zout.writestr(item, data)
     # campaign specs
     variant = f'[[variants]]\nname = "v"\nscenario = "{SCEN}"\nset = ["run.duration=5"]\n'
     specs = {
@@ -242,6 +251,13 @@ CASES = [
     ("fmu-scheduled-execution-only", lambda f: FMU(f, "scheduled.fmu"), 3,
      "cannot be run: it needs scheduled execution"),
     ("fmu-binary-not-a-library", lambda f: FMU(f, "junkbin.fmu"), 3, "cannot instantiate"),
+    ("fmu-fmi-1.0", lambda f: FMU(f, "fmi1.fmu"), 3,
+     "fmi1.fmu: invalid modelDescription.xml: fmiVersion '1.0': uwcosim runs FMI 2.0 and 3.0"),
+    ("fmu-no-fmi-version", lambda f: FMU(f, "noversion.fmu"), 3,
+     "noversion.fmu: invalid modelDescription.xml: no fmiVersion attribute"),
+    ("fmu-xml-not-utf8", lambda f: FMU(f, "latin1md.fmu"), 3,
+     "latin1md.fmu: invalid modelDescription.xml: not well-formed XML in its declared "
+     "encoding"),
     # -- command-line arguments --
     ("run-no-scenario", lambda f: ["run"], 2, "required: scenario"),
     ("run-seed-not-int", lambda f: ["run", str(SCEN), "--seed", "x"], 2, "--seed"),

@@ -35,6 +35,8 @@ _METRES = {"m": 1.0, "meter": 1.0, "meters": 1.0, "metre": 1.0, "metres": 1.0,
 #: variables whose values are lengths (depth candidates and metric axes)
 LENGTHS = ("depth", "elevation", "z", "x", "y")
 DEGREES = ("lon", "lat")
+#: the attributes :func:`decode` reads
+CF_KEYS = ("_FillValue", "missing_value", "scale_factor", "add_offset", "units")
 
 
 def _text(v) -> str:

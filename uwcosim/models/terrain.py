@@ -28,7 +28,7 @@ from scipy import ndimage
 from uwcosim.core import bspline
 from uwcosim.core.errors import MapError
 from uwcosim.models.geo import LocalFrame, grid_centre, project_grid
-from uwcosim.models.map_decode import LENGTHS, decode, fill_problem, map_memory_problem
+from uwcosim.models.map_decode import CF_KEYS, LENGTHS, decode, fill_problem, map_memory_problem
 
 PAD = 3
 MAGIC = b"UWCBATH1"
@@ -315,7 +315,9 @@ def _read_netcdf(path: Path, variable: str | None = None) -> dict[str, np.ndarra
         from scipy.io import netcdf_file  # NetCDF-3 classic files
 
         with netcdf_file(path, "r", mmap=False) as f:
-            return _decoded(f.variables, str(path), variable, lambda v: dict(v._attributes))
+            # scipy keeps a variable's attributes as its instance attributes
+            return _decoded(f.variables, str(path), variable,
+                            lambda v: {k: a for k, a in vars(v).items() if k in CF_KEYS})
 
 
 def _decoded(variables, where: str, variable: str | None, attrs) -> dict[str, np.ndarray]:

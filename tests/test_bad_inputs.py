@@ -251,6 +251,9 @@ CASES = [
     ("fmu-scheduled-execution-only", lambda f: FMU(f, "scheduled.fmu"), 3,
      "cannot be run: it needs scheduled execution"),
     ("fmu-binary-not-a-library", lambda f: FMU(f, "junkbin.fmu"), 3, "cannot instantiate"),
+    ("start-unknown-variable", lambda f: S("fmus.vehicle.start.vxx=1"), 2,
+     "key 'fmus.vehicle.start.vxx': FMU 'vehicle' (AUVKinematics.fmu) has no variable 'vxx' "
+     "(nearest: vx)"),
     ("fmu-fmi-1.0", lambda f: FMU(f, "fmi1.fmu"), 3,
      "fmi1.fmu: invalid modelDescription.xml: fmiVersion '1.0': uwcosim runs FMI 2.0 and 3.0"),
     ("fmu-no-fmi-version", lambda f: FMU(f, "noversion.fmu"), 3,

@@ -116,8 +116,11 @@ def xml_problem(path: str | Path) -> str | None:
     import xml.etree.ElementTree as ET
 
     try:
-        with zipfile.ZipFile(path) as zf:
-            data = zf.read("modelDescription.xml")
+        if Path(path).is_dir():  # an unzipped FMU folder
+            data = (Path(path) / "modelDescription.xml").read_bytes()
+        else:
+            with zipfile.ZipFile(path) as zf:
+                data = zf.read("modelDescription.xml")
         root = ET.fromstring(data)
     except ET.ParseError as exc:
         return (f"not well-formed XML in its declared encoding ({exc}; an XML file without "

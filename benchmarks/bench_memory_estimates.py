@@ -1,8 +1,7 @@
 """The up-front memory estimates (``uwcosim/core/memory.py``) against what runs take.
 
-Each measurement is a fresh process (``python -m uwcosim run`` or a map load); its peak
-resident memory is read from ``resource.getrusage(RUSAGE_CHILDREN)`` after it ends, in
-increasing order of size (the value is the largest over the children waited for). The
+Each measurement is a fresh process (``python -m uwcosim run`` or a map load); its own peak
+resident memory is read by ``os.wait4`` when it ends. The
 difference between a large and a small setting, divided by the size difference, is the
 measured cost per particle / per map node; the estimate's per-unit cost is printed beside it.
 
@@ -13,7 +12,7 @@ measured cost per particle / per map node; the estimate's per-unit cost is print
 from __future__ import annotations
 
 import argparse
-import resource
+import os
 import subprocess
 import sys
 import tempfile
@@ -39,8 +38,13 @@ b.casadi_function()
 
 
 def peak_mb(args: list[str]) -> float:
-    subprocess.run(args, check=True, capture_output=True)
-    return resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
+    """Peak RSS (MB) of the process ``args``, which must succeed."""
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode:
+        raise SystemExit(f"{args[:4]}...: exit status {proc.returncode}")
+    return usage.ru_maxrss / 1024.0
 
 
 def main() -> None:
@@ -52,7 +56,7 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         rss = []
-        for n in a.map_sizes:  # before the runs: the largest-so-far peak must grow
+        for n in a.map_sizes:
             rss.append(peak_mb([sys.executable, "-c", MAP_SCRIPT, str(n), f"{tmp}/m{n}.nc"]))
         cells = [n * n for n in a.map_sizes]
         per = (rss[1] - rss[0]) * 2**20 / (cells[1] - cells[0])

@@ -22,6 +22,7 @@ from __future__ import annotations
 import hashlib
 import subprocess
 import sys
+import xml.etree.ElementTree as ET
 import zipfile
 import zlib
 from pathlib import Path, PurePosixPath
@@ -113,8 +114,6 @@ def xml_problem(path: str | Path) -> str | None:
     """What is wrong with the archive's ``modelDescription.xml`` in the user's terms, before
     fmpy reads it (its messages: "int() argument must be ... not 'NoneType'" for
     ``fmiVersion="1.0"``, a temporary path that does not exist for a non-UTF-8 file)."""
-    import xml.etree.ElementTree as ET
-
     try:
         if Path(path).is_dir():  # an unzipped FMU folder
             data = (Path(path) / "modelDescription.xml").read_bytes()

@@ -7,6 +7,7 @@ TOML values in a scenario or a ``--set`` never give a traceback."""
 from __future__ import annotations
 
 import json
+import os
 import re
 import signal
 import zipfile
@@ -87,10 +88,20 @@ def files(tmp_path_factory, project_fmus) -> dict[str, Path]:
         r"<CoSimulation [^>]*/>", '<ScheduledExecution modelIdentifier="AUVKinematics"/>',
         re.sub(r"<ModelExchange [^>]*/>", "", t)))
     remake("junkbin.fmu", binary=b"\x7fELF" + b"\0" * 60)
+    # issue 24, item 19: modelDescription.xml problems in Python's words before
+    remake("fmi1.fmu", lambda t: t.replace('fmiVersion="3.0"', 'fmiVersion="1.0"'))
+    remake("noversion.fmu", lambda t: t.replace('fmiVersion="3.0"', ""))
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(d / "latin1md.fmu", "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'description="', b'description="\xe9', 1)
+            zout.writestr(item, data)
     # campaign specs
     variant = f'[[variants]]\nname = "v"\nscenario = "{SCEN}"\nset = ["run.duration=5"]\n'
     specs = {
         "c_ok": f"seed = 1\nruns = 1\n{variant}",
+        "c_huge": f"seed = 1\nruns = 1000000000\n{variant}",
         "c_unknown": f"seed = 1\nrunz = 1\n{variant}",
         "c_noruns": f"seed = 1\nruns = 0\n{variant}",
         "c_seedstr": f'seed = "1"\n{variant}',
@@ -118,6 +129,23 @@ def files(tmp_path_factory, project_fmus) -> dict[str, Path]:
     f["decreasing"] = _log(d / "decreasing.parquet", {"time": t[::-1], "x": t})
     (d / "notparquet.parquet").write_text("hello")
     f["notparquet"] = d / "notparquet.parquet"
+    # issue 24: deep nesting, odd scenario paths, outputs that cannot be written
+    (d / "deep_arrays.toml").write_text("x = " + "[" * 500 + "]" * 500 + "\n")
+    (d / "deep_tables.toml").write_text("x = " + "{a = " * 2000 + "1" + "}" * 2000 + "\n")
+    (d / "folder.toml").mkdir()
+    os.mkfifo(d / "fifo.toml")
+    (d / "loop.toml").symlink_to(d / "loop.toml")
+    plain = d / "plain_run"
+    plain.mkdir()
+    _log(plain / "log.parquet", {"time": t, "x": t * 2.0}, meta)
+    ro = d / "ro_run"  # a run folder whose report.md cannot be written (root ignores modes)
+    ro.mkdir()
+    _log(ro / "log.parquet", {"time": t, "x": t * 2.0}, meta)
+    (ro / "report.md").mkdir()
+    forged = d / "forged"
+    forged.mkdir()
+    (forged / "campaign.json").write_text('{"sha256": 1, "fingerprint": "garbage"}')
+    f["forged"] = forged
     return f
 
 
@@ -223,6 +251,16 @@ CASES = [
     ("fmu-scheduled-execution-only", lambda f: FMU(f, "scheduled.fmu"), 3,
      "cannot be run: it needs scheduled execution"),
     ("fmu-binary-not-a-library", lambda f: FMU(f, "junkbin.fmu"), 3, "cannot instantiate"),
+    ("start-unknown-variable", lambda f: S("fmus.vehicle.start.vxx=1"), 2,
+     "key 'fmus.vehicle.start.vxx': FMU 'vehicle' (AUVKinematics.fmu) has no variable 'vxx' "
+     "(nearest: vx)"),
+    ("fmu-fmi-1.0", lambda f: FMU(f, "fmi1.fmu"), 3,
+     "fmi1.fmu: invalid modelDescription.xml: fmiVersion '1.0': uwcosim runs FMI 2.0 and 3.0"),
+    ("fmu-no-fmi-version", lambda f: FMU(f, "noversion.fmu"), 3,
+     "noversion.fmu: invalid modelDescription.xml: no fmiVersion attribute"),
+    ("fmu-xml-not-utf8", lambda f: FMU(f, "latin1md.fmu"), 3,
+     "latin1md.fmu: invalid modelDescription.xml: not well-formed XML in its declared "
+     "encoding"),
     # -- command-line arguments --
     ("run-no-scenario", lambda f: ["run"], 2, "required: scenario"),
     ("run-seed-not-int", lambda f: ["run", str(SCEN), "--seed", "x"], 2, "--seed"),
@@ -283,6 +321,76 @@ CASES = [
      "/proc/x: cannot write the diff plots"),
     ("baseline-check-rtol-nan", lambda f: ["baseline", "check", "--rtol", "nan"], 2,
      "--rtol nan"),
+    # -- issue 24, item 11: deep nesting (a RecursionError and 3000 lines of traceback) --
+    ("deep-arrays-in-a-file", lambda f: ["run", str(f["dir"] / "deep_arrays.toml")], 2,
+     "deep_arrays.toml: arrays or tables nested too deeply (at most 64 levels)"),
+    ("deep-tables-in-a-file", lambda f: ["check", str(f["dir"] / "deep_tables.toml")], 2,
+     "deep_tables.toml: arrays or tables nested too deeply"),
+    ("deep-arrays-in-set", lambda f: S("run.duration=" + "[" * 500 + "]" * 500), 2,
+     "the value is nested too deeply"),
+    ("deep-tables-in-set", lambda f: S("run={" + "a={" * 2000 + "}" * 2001), 2,
+     "the value is nested too deeply"),
+    ("deep-but-parsable-in-set", lambda f: S("run.duration=" + "[" * 80 + "]" * 80), 2,
+     "the value is nested too deeply (at most 64 levels)"),
+    # -- item 8: memory estimated up front (5 GB and more before, in check as in run) --
+    ("pf-memory-run", lambda f: [*S('estimators={pf={type="pf", n_particles=1000000000}}',
+                                    "run.duration=5"), "--no-figures"], 2,
+     "key 'estimators.pf': n_particles 1000000000 needs about 313 GiB (limit 4 GiB; raise it "
+     "with UWCOSIM_MEMORY_LIMIT_GIB=N): use fewer particles"),
+    ("pf-memory-check", lambda f: ["check", str(SCEN), "--set",
+                                   'estimators={pf={type="rbpf", n_particles=1000000000}}'], 2,
+     "key 'estimators.pf': n_particles 1000000000 needs about"),
+    ("pfm-psi-memory-check", lambda f: ["check", str(SCEN), "--set",
+                                        'estimators={p={type="pfm_psi", grid_factor=1e6}}'], 2,
+     "key 'estimators.p': K 10, grid_factor 1e+06 (21093750^2 grid points) needs about"),
+    ("pfm-psi-memory-run", lambda f: [*S('estimators={p={type="pfm_psi", K=100000}}'),
+                                      "--no-figures"], 2, "use a smaller K or grid_factor"),
+    ("campaign-runs-1e9", lambda f: ["campaign", str(f["c_ok"]), "--runs", "1000000000"], 2,
+     "--runs 1000000000 (1000000000 runs of 1 variant: their tasks, futures and records) "
+     "needs about 3.81e+03 GiB (limit 4 GiB"),
+    ("campaign-runs-1e9-in-spec", lambda f: ["campaign", str(f["c_huge"])], 2,
+     "c_huge.toml: key 'runs' = 1000000000 (1000000000 runs of 1 variant"),
+    ("campaign-workers-1000-oversubscribed", lambda f: ["campaign", str(f["c_ok"]), "--workers",
+                                                        "1000", "--oversubscribe"], 2,
+     "--workers 1000 --oversubscribe (about 0.3 GiB per process) needs about 300 GiB"),
+    # -- item 12: outputs that cannot be written (PermissionError/IsADirectoryError before) --
+    ("report-out-unwritable", lambda f: ["report", str(f["dir"] / "plain_run"), "--out",
+                                         "/proc/x"], 2, "/proc/x"),
+    ("report-in-a-read-only-run", lambda f: ["report", str(f["dir"] / "ro_run")], 2,
+     "report.md: cannot read or write (Is a directory)"),
+    ("ssp-export-out-unwritable", lambda f: ["ssp", "export", str(SCEN), "--out",
+                                             "/proc/x.ssp"], 2, "/proc/x.ssp: cannot"),
+    ("ssp-export-out-a-folder", lambda f: ["ssp", "export", str(SCEN), "--out",
+                                           str(f["dir"])], 2, "Is a directory"),
+    ("fmu-build-out-unwritable", lambda f: ["fmu", "build", "--out", "/proc/x"], 2,
+     "/proc/x: cannot"),
+    ("verify-out-unwritable", lambda f: ["verify", "example1", "--out", "/proc/x"], 2,
+     "/proc/x: cannot"),
+    # -- item 13 --
+    ("export-mat-string-column", lambda f: ["export", str(f["strings"]), "--mat"], 1,
+     "column 'x' is not numeric or boolean; a .mat export holds numbers only (use --csv)"),
+    ("export-mat-out-unwritable", lambda f: ["export", str(f["run"]), "--mat", "--out",
+                                             "/proc/x.mat"], 1,
+     "/proc/x.mat: cannot write (No such file"),
+    ("campaign-scheduler-not-a-url", lambda f: ["campaign", str(f["c_ok"]), "--scheduler",
+                                                "not a url"], 2,
+     "--scheduler 'not a url': not a scheduler address (expected tcp://HOST:PORT"),
+    ("campaign-resume-forged-manifest", lambda f: ["campaign", str(f["c_ok"]), "--resume",
+                                                   "--out", str(f["forged"])], 2,
+     "campaign.json: unreadable campaign manifest"),
+    # -- item 19: a scenario path that is no file ("scenario file not found" before) --
+    ("scenario-is-a-folder", lambda f: ["run", str(f["dir"] / "folder.toml")], 2,
+     "folder.toml: is a folder; expected a scenario file"),
+    ("scenario-is-a-fifo", lambda f: ["check", str(f["dir"] / "fifo.toml")], 2,
+     "fifo.toml: not a regular file (a FIFO, socket or device)"),
+    ("scenario-symlink-loop", lambda f: ["run", str(f["dir"] / "loop.toml")], 2,
+     "loop.toml: a symbolic link to nothing (or a loop of links)"),
+    # -- item 20: input silently ignored --
+    ("set-value-with-a-newline", lambda f: S("run.duration=20\nstep=2.0"), 2,
+     "the value is not one TOML value (a new line starts key 'step')"),
+    ("set-bare-word-with-a-newline", lambda f: S("estimators.ekf.type=ekf\nx y"), 2,
+     "the value is not one TOML value (it spans lines)"),
+    ("out-empty", lambda f: ["run", str(SCEN), "--out", ""], 2, "--out '': an empty path"),
 ]
 
 
@@ -566,3 +674,92 @@ def test_arbitrary_scenario_files_never_give_a_traceback(tmp_path, doc):
         load_scenario(p)
     except ScenarioError:
         pass
+
+
+@pytest.mark.parametrize(("item", "key", "value"), [
+    ('map={kind="file", file="maps/good.nc"}', ("map", "file"), "maps/good.nc"),
+    ('fmus.dvl={path="fmus/DVL.fmu"}', ("fmus", "dvl", "path"), "fmus/DVL.fmu"),
+    ('fmus={vehicle={path="v.fmu", map="m.npz"}}', ("fmus", "vehicle", "map"), "m.npz"),
+    ("system.ssp=sys/a.ssp", ("system", "ssp"), "sys/a.ssp"),
+    ('system={ssp="sys/a.ssp"}', ("system", "ssp"), "sys/a.ssp"),
+])
+def test_set_paths_inside_inline_tables_are_relative_to_the_current_folder(tmp_path, item, key,
+                                                                           value):
+    """Issue 24, item 17: a path in an inline table of ``--set`` was resolved against the
+    scenario's folder (the dotted forms used the current folder, as the README says)."""
+    from uwcosim.scenario.overrides import absolute_path_overrides, apply_override
+
+    (out,) = absolute_path_overrides([item], tmp_path, "s.toml")
+    data: dict = {}
+    for keys, v in parse_overrides([out], "s.toml"):
+        apply_override(data, keys, v, "s.toml")
+    node = data
+    for k in key:
+        node = node[k]
+    assert node == str((tmp_path / value).resolve()), out
+
+
+def test_a_utf8_bom_and_a_whole_value_with_newlines_are_read(tmp_path):
+    """Issue 24, items 19 and 20: a byte-order mark gave "Invalid statement (line 1, col 1)";
+    an array over several lines is one TOML value and is read whole."""
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbf" + SCEN.read_bytes().replace(
+        b'path = "../fmus/', b'path = "' + str(ROOT / "fmus").encode() + b"/"))
+    loaded = load_scenario(bom, ["estimation.initial_std=[\n50.0,\n50.0, 1.0, 1.0]"])
+    assert loaded.spec.estimation.initial_std == [50.0, 50.0, 1.0, 1.0]
+
+
+def test_report_of_a_log_with_no_rows(tmp_path, cli):
+    """Issue 24, item 13: ``report`` of a run whose log has no rows gave an IndexError
+    traceback; it writes a report without figures."""
+    from uwcosim.runlog import RunLogger
+
+    run = tmp_path / "run"
+    run.mkdir()
+    meta = {"seed": 1, "states": ["px", "py", "vx", "vy"], "truth": ["vehicle.x", "vehicle.y",
+                                                                    "vehicle.vx", "vehicle.vy"],
+            "estimators": ["ekf"]}
+    names = ["vehicle.x", "vehicle.y", "vehicle.vx", "vehicle.vy",
+             *(f"est.ekf.{s}" for s in ("px", "py", "vx", "vy"))]
+    RunLogger(run / "log.parquet", names, [], meta, chunk=4).close()
+    status, out, err = cli(["report", str(run)])
+    assert status == 0 and "Traceback" not in err, err
+    assert (run / "report.md").is_file() and not list(run.glob("*.png"))
+
+
+def test_campaign_workers_are_capped_at_the_cores(monkeypatch, caplog):
+    """Issue 24, item 8: ``--workers 1000`` started about 40 processes and over 5 GB without
+    finishing a run. More than the cores are capped (a warning says so) unless
+    ``--oversubscribe``; never more than the runs."""
+    from uwcosim.campaign.driver import worker_count
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    assert worker_count(1000, 50) == 2 and "capped at the 2 cores" in caplog.text
+    assert worker_count(None, 50) == 2 and worker_count(1, 50) == 1
+    assert worker_count(None, 1) == 1
+    assert worker_count(8, 50, oversubscribe=True) == 8
+    with pytest.raises(ScenarioError, match="--workers 1000 --oversubscribe"):
+        worker_count(1000, 5000, oversubscribe=True)
+
+
+def test_the_numpy_kernels_are_recorded_and_reproduced(tmp_path):
+    """Issue 24, item 20: ``UWCOSIM_NUMBA=0`` changes the log by about 1e-11 with the same
+    metadata, so the report's reproduce command did not reproduce it. The metadata says
+    ``kernels = "numpy"`` and the reproduce line starts with ``UWCOSIM_NUMBA=0``; a default run
+    has no such key (its log is unchanged)."""
+    import subprocess
+    import sys
+
+    from uwcosim.runlog import read_log
+
+    env = {**os.environ, "UWCOSIM_NUMBA": "0"}
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "uwcosim", "run", str(SCEN), "--out", str(out),
+                        "--set", "run.duration=3", "--set", 'estimators={ekf={type="ekf"}}'],
+                       capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    assert read_log(out / "log.parquet")[1]["kernels"] == "numpy"
+    assert "UWCOSIM_NUMBA=0 uwcosim run " in (out / "report.md").read_text()
+    from uwcosim.reports.reproduce import reproduce_command
+
+    assert not reproduce_command({}, {"scenario_path": "s.toml"}).startswith("UWCOSIM")

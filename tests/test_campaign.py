@@ -109,3 +109,58 @@ def test_dask_local_cluster(spec, tmp_path):
     assert s["runs"] == 4 and not s["failed"]
     run_campaign(spec, tmp_path / "l", runs=2, workers=1, figures=False)
     assert _table(tmp_path / "d") == _table(tmp_path / "l")
+
+
+def _record(results: Path, variant: str, run: int, status: str = "ok", rmse: float = 1.0,
+            diverged: bool = False) -> None:
+    est = {} if status != "ok" else {"ekf": {"rmse_position_m": rmse, "diverged": diverged,
+                                             "anees": 1.0}}
+    results.mkdir(parents=True, exist_ok=True)
+    (results / f"{variant}__{run:05d}.json").write_text(json.dumps(
+        {"variant": variant, "run": run, "seed": run, "status": status,
+         "error": "boom" if status != "ok" else "", "estimators": est, "wall_s": 0.1}))
+
+
+def test_failed_and_nan_runs_are_counted_per_variant(tmp_path):
+    """Issue 24, item 4: variant ``a`` whose three runs failed vanished from table.md and
+    report.md, and a NaN RMSE was averaged away while the table said "runs 3"."""
+    from uwcosim.campaign.driver import collect
+
+    res = tmp_path / "results"
+    for i in range(3):
+        _record(res, "a", i, status="failed")
+        _record(res, "b", i, rmse=float("nan") if i == 1 else 2.0 * (i + 1))
+    s = collect(tmp_path, figures=False)
+    table = (tmp_path / "table.md").read_text()
+    assert "| a | - | 0 | 3 | 0 | nan" in table, table
+    assert "| b | ekf | 2 | 0 | 1 | 4.00 ± 2.83" in table, table  # mean of 2 and 6
+    report = (tmp_path / "report.md").read_text()
+    assert "3 of 6 runs failed (a: 3;" in report and "NaN position RMSE (b/ekf: 1)" in report
+    assert "over 6 runs, 3 of them failed" in table
+    assert [f["variant"] for f in s["failed"]] == ["a"] * 3
+    assert s["nan"] == [{"variant": "b", "run": 1, "estimator": "ekf"}]
+    row = {r["variant"]: r for r in s["table"]}
+    assert row["a"]["failed"] == 3 and row["b"]["nan"] == 1 and row["b"]["runs"] == 2
+
+
+def test_every_run_failed_is_a_table_of_failures_and_a_non_zero_exit(tmp_path, project_fmus):
+    """Issue 24, item 4, through the command line: a campaign whose every run fails says so
+    in table.md and report.md, and exits 1."""
+    import subprocess
+    import sys
+
+    p = tmp_path / "c.toml"
+    p.write_text(f"""seed = 1
+runs = 2
+[[variants]]
+name = "off_map"
+scenario = "{ROOT}/scenarios/tan_terrain.toml"
+set = ["run.duration=5", "fmus.vehicle.start.x=26000.0", 'estimators={{ekf={{type="ekf"}}}}']
+""")
+    r = subprocess.run([sys.executable, "-m", "uwcosim", "campaign", str(p), "--out",
+                        str(tmp_path / "o"), "--workers", "1"], capture_output=True, text=True,
+                       cwd=tmp_path)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "| off_map | - | 0 | 2 | 0 |" in (tmp_path / "o" / "table.md").read_text()
+    assert "2 of 2 runs failed (off_map: 2" in (tmp_path / "o" / "report.md").read_text()
+    assert "Traceback" not in r.stderr

@@ -146,3 +146,44 @@ def test_pytest_helper(tan, tmp_path, monkeypatch):
         assert_matches_baseline(scenario, baseline, over, seed=5, out_dir=tmp_path / "o",
                                 signals=["vehicle.x", "est.ekf.x"])
     assert "diff plots" in str(info.value) and (tmp_path / "o" / "diff").is_dir()
+
+
+def test_a_baseline_that_covers_less_than_the_run_fails(base, tmp_path):
+    """Issue 24, item 3: a one-row baseline, or a 20 s baseline against a 40 s run, passed
+    ("all 35 signals pass"). Different time spans fail; ``allow_shorter`` passes a shorter
+    baseline but says so in a warning line."""
+    t, cols, flags, ref = base
+    one = write_log(tmp_path / "one.parquet", t[:1], {"x": cols["x"][:1]})
+    rep = compare_logs(ref, one, signals=["x"])
+    assert not rep.ok and "the run covers t = 0 .. 100 s, the baseline 0 .. 0 s" in rep.text()
+    half = write_log(tmp_path / "half.parquet", t[:51], {"x": cols["x"][:51]})
+    rep = compare_logs(ref, half, signals=["x"])
+    assert not rep.ok and "FAILED time" in rep.text()
+    rep = compare_logs(ref, half, signals=["x"], allow_shorter=True)
+    assert rep.ok
+    assert "warning: the baseline covers only t = 0 .. 50 s of the run's 0 .. 100 s" \
+        in rep.text()
+    # a shorter run is never allowed
+    rep = compare_logs(half, ref, signals=["x"], allow_shorter=True)
+    assert not rep.ok and "FAILED time" in rep.text()
+    r = subprocess.run([sys.executable, "-m", "uwcosim", "regress", str(ref), str(half),
+                        "--no-plots"], capture_output=True, text=True)
+    assert r.returncode == 1 and "FAILED time" in r.stdout, r.stdout + r.stderr
+    r = subprocess.run([sys.executable, "-m", "uwcosim", "regress", str(ref), str(half),
+                        "--no-plots", "--allow-shorter", "--signals", "x"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0 and "warning: the baseline covers only" in r.stdout, r.stdout
+
+
+def test_the_closest_margin_is_measured_against_the_tube(base, tmp_path):
+    """Issue 24, item 19: with a time tolerance, a passing signal was reported as "deviation
+    100 = 4.8e+04 of its tolerance": the margin is the distance outside the tube's band."""
+    t, cols, flags, ref = base
+    step = np.where(t < 50, 0.0, 100.0)
+    a = write_log(tmp_path / "a.parquet", t, {"x": step})
+    b = write_log(tmp_path / "b.parquet", t + 0.0, {"x": np.where(t < 51, 0.0, 100.0)})
+    rep = compare_logs(a, b, ttol=2.0, signals=["x"])
+    assert rep.ok, rep.text()
+    assert "of its tolerance" not in rep.text() or "= 0 of" in rep.text(), rep.text()
+    line = rep.text().splitlines()[-1]
+    assert "4.8e+04" not in line and "100 =" not in line, line

@@ -417,3 +417,40 @@ def test_extracted_fmus_are_removed_with_the_scenario(project_fmus, tmp_path):
     del loaded
     gc.collect()
     assert not folder.exists()
+
+
+def test_a_self_connection_is_refused(project_fmus, tmp_path):
+    """Issue 24, item 6: ``dvl.vx -> dvl.vx`` vanished from the generated scenario and the run
+    was ok with ``dvl.vx`` undriven; the TOML form is refused, and so is this."""
+    path = auv_ssp(tmp_path / "auv.ssp", project_fmus)
+    with zipfile.ZipFile(path) as zf:
+        members = {i.filename: zf.read(i) for i in zf.infolist()}
+    members["SystemStructure.ssd"] = members["SystemStructure.ssd"].replace(
+        conn("vehicle.vx", "dvl.vx").encode(), conn("dvl.vx", "dvl.vx").encode())
+    assert b'startElement="dvl" startConnector="vx" endElement="dvl"' \
+        in members["SystemStructure.ssd"]
+    with zipfile.ZipFile(path, "w") as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+    with pytest.raises(ScenarioError, match=r"connection dvl\.vx -> dvl\.vx in system 'auv': "
+                       r"connects dvl\.vx to itself; expected an output and an input"):
+        load_scenario(path)
+
+
+def test_a_corrupt_fmu_inside_an_ssp_is_named_by_the_ssp(project_fmus, tmp_path):
+    """Issue 24, item 19: a corrupt FMU inside an SSP was named by its temporary copy."""
+    from uwcosim.core.errors import FMUError
+
+    bad = tmp_path / "DVL.fmu"
+    bad.write_bytes((project_fmus / "DVL.fmu").read_bytes()[:3000])
+    fmus = tmp_path / "fmus"
+    fmus.mkdir()
+    for n in ("AUVKinematics", "DepthSounder"):
+        (fmus / f"{n}.fmu").write_bytes((project_fmus / f"{n}.fmu").read_bytes())
+    (fmus / "DVL.fmu").write_bytes(bad.read_bytes())
+    path = auv_ssp(tmp_path / "auv.ssp", fmus)
+    with pytest.raises(FMUError) as info:
+        load_scenario(path)
+    msg = str(info.value)
+    assert f"{path}: component 'dvl' (resources/DVL.fmu)" in msg, msg
+    assert "uwcosim_" not in msg and len(msg.splitlines()) == 1, msg

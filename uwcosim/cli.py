@@ -28,7 +28,7 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
-from uwcosim.core.errors import FMUError, UwcosimError
+from uwcosim.core.errors import FMUError, UwcosimError, os_error_line
 from uwcosim.core.version import __version__
 
 ANEES_NOTE = ("ANEES: average normalized estimation error squared, per state; 1 = consistent "
@@ -312,7 +312,7 @@ def _cmd_regress(args) -> int:
         plots = Path(args.plots) if args.plots else (
             run / "regress" if run.is_dir() else log_file(run).with_name(f"{run.stem}_regress"))
     report = compare_logs(args.run, args.baseline, args.rtol, args.atol, args.ttol,
-                          args.signals, plot_dir=plots)
+                          args.signals, plot_dir=plots, allow_shorter=args.allow_shorter)
     print(report.text())
     return 0 if report.ok else 1
 
@@ -429,15 +429,19 @@ def _cmd_campaign(args) -> int:
                        f"{len(absent)} missing FMU{'s' * (len(absent) != 1)}; nothing was run)")
     out = Path(args.out) if args.out else Path("runs") / f"campaign_{campaign.path.stem}"
     summary = run_campaign(campaign, out, runs=args.runs, workers=args.workers,
-                           scheduler=args.scheduler, resume=args.resume)
+                           scheduler=args.scheduler, resume=args.resume,
+                           oversubscribe=args.oversubscribe)
     print((out / "table.md").read_text() if (out / "table.md").exists() else "no results")
     for f in summary.get("failed", []):
         print(f"failed: {f['variant']} run {f['run']}: {f['error']}", file=sys.stderr)
+    for f in summary.get("nan", []):
+        print(f"NaN: {f['variant']} run {f['run']}: estimator {f['estimator']} has a NaN "
+              f"position RMSE", file=sys.stderr)
     print(f"{summary['runs']} runs in {out} ({summary['wall_time_s']:.1f} s)")
     from uwcosim.campaign.execute import session_line
 
     print(session_line(out))
-    return 1 if summary.get("failed") else 0
+    return 1 if summary.get("failed") or summary.get("nan") else 0
 
 
 class _Parser(argparse.ArgumentParser):
@@ -608,7 +612,10 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("campaign", help="Monte Carlo campaign (local processes or Dask)")
     c.add_argument("spec", help="campaign spec (TOML)")
     c.add_argument("--runs", type=int, default=None, help="runs per variant (default: spec)")
-    c.add_argument("--workers", type=int, default=None, help="local processes (default: cores)")
+    c.add_argument("--workers", type=int, default=None,
+                   help="local processes (default: cores; more than the cores are capped)")
+    c.add_argument("--oversubscribe", action="store_true",
+                   help="start --workers processes even above the number of cores")
     c.add_argument("--scheduler", default=None, help="Dask scheduler, e.g. tcp://host:8786")
     c.add_argument("--out", default=None,
                    help="campaign directory (default: runs/campaign_<spec name>)")
@@ -648,6 +655,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--plots", default=None,
                    help="folder of the diff plots (default: RUN/regress)")
     g.add_argument("--no-plots", action="store_true", help="no diff plots")
+    g.add_argument("--allow-shorter", action="store_true",
+                   help="pass a baseline that covers less time than the run (compares the "
+                   "common span, with a warning line); by default different spans fail")
     g.set_defaults(func=_cmd_regress)
 
     bl = sub.add_parser("baseline", help="golden baselines of the shipped scenarios")
@@ -749,6 +759,11 @@ def _main(argv: list[str] | None, supervise: bool | None) -> int:
     logging.basicConfig(format="%(levelname)s %(name)s: %(message)s")
     logging.getLogger().setLevel(level)
     install_cli_handlers()
+    for name in ("out", "plots"):
+        if getattr(args, name, None) == "":
+            print(f"uwcosim: error: --{name} '': an empty path; give a folder or file name",
+                  file=sys.stderr)
+            return 2
     if args.func is _cmd_run and (argv is None if supervise is None else supervise):
         return _supervised(args)
     return _dispatch(args)
@@ -762,6 +777,10 @@ def _dispatch(args) -> int:
     except UwcosimError as exc:
         print(f"uwcosim: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except OSError as exc:  # an output the system refused (read-only, a folder, disk full)
+        line, code = os_error_line(exc)
+        print(f"uwcosim: error: {line}", file=sys.stderr)
+        return code
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", 2)
         print(f"uwcosim: interrupted by {signal_name(signum)}", file=sys.stderr)

@@ -93,6 +93,11 @@ def export_mat(run: str | Path, out: str | Path | None = None) -> Path:
     path, table = _read(run)
     out = Path(out) if out is not None else path.with_suffix(".mat")
     columns = table.column_names
+    for c in columns:
+        kind = np.asarray(table.column(c).to_numpy(zero_copy_only=False)).dtype.kind
+        if kind not in "fiub":
+            raise UwcosimError(f"{path}: column {c!r} is not numeric or boolean; a .mat export "
+                               f"holds numbers only (use --csv)")
     arrays = [np.asarray(table.column(c).to_numpy(), dtype=float) for c in columns]
     data = np.column_stack(arrays) if arrays else np.zeros((0, 0))
     meta = (table.schema.metadata or {}).get(b"uwcosim", b"{}").decode()
@@ -103,7 +108,8 @@ def export_mat(run: str | Path, out: str | Path | None = None) -> Path:
         "metadata": json.dumps(json.loads(meta), sort_keys=True),
     }
     try:
-        savemat(out, content, do_compression=True, oned_as="column")
+        with open(out, "wb") as fh:  # scipy turns an OSError on a path into a ValueError
+            savemat(fh, content, do_compression=True, oned_as="column")
     except OSError as exc:
         raise UwcosimError(f"{out}: cannot write ({exc.strerror or exc})") from None
     return out

@@ -5,6 +5,11 @@ filter time, divergence and lost-track flags (:mod:`uwcosim.evaluation.trackloss
 variant, status and error. The aggregate (seed 000 eq. 56:
 the mean over runs of each run's RMSE) goes to ``table.md`` and ``table.csv``, with the number
 of runs that lost the track over the number run (``track lost``).
+
+Nothing is averaged away: ``runs`` counts only the runs in the means (finished, not diverged,
+a finite position RMSE); ``failed`` counts the variant's runs that did not finish (a variant
+whose every run failed still has its row, estimator ``-``), ``nan`` the finished runs whose
+position RMSE is NaN, and ``diverged`` the diverged ones.
 """
 
 from __future__ import annotations
@@ -61,20 +66,30 @@ def write_runs_parquet(rows: list[dict], path: Path) -> Path:
 
 
 def aggregate(rows: list[dict]) -> list[dict]:
-    """Mean over finished, non-diverged runs of each run's metrics, per (variant, estimator)."""
+    """Mean over finished, non-diverged runs with a finite position RMSE of each run's
+    metrics, per (variant, estimator); with the failed, NaN and diverged runs counted."""
     groups: dict[tuple[str, str], list[dict]] = {}
+    failed: dict[str, set] = {}
     for r in rows:
+        failed.setdefault(r["variant"], set())
+        if r["status"] != "ok":
+            failed[r["variant"]].add(r["run"])
         if r["estimator"]:
             groups.setdefault((r["variant"], r["estimator"]), []).append(r)
+    for variant in failed:  # every run of it failed before any estimate: still a row
+        if not any(v == variant for v, _ in groups):
+            groups[(variant, "-")] = []
     out = []
     for (variant, est), rs in groups.items():
         ok = [r for r in rs if r["status"] == "ok" and not r["diverged"]]
-        row = {"variant": variant, "estimator": est, "runs": len(ok),
+        good = [r for r in ok if np.isfinite(r["rmse_position_m"])]
+        row = {"variant": variant, "estimator": est, "runs": len(good),
+               "failed": len(failed[variant]), "nan": len(ok) - len(good),
                "diverged": sum(r["diverged"] for r in rs),
                "track_lost": sum(r.get("track_lost", r["diverged"]) for r in rs),
                "runs_total": len(rs)}
         for m in METRICS:
-            vals = np.array([r[m] for r in ok], dtype=float)
+            vals = np.array([r[m] for r in good], dtype=float)
             vals = vals[np.isfinite(vals)]
             row[m] = float(vals.mean()) if vals.size else float("nan")
             if m == "rmse_position_m":
@@ -87,6 +102,7 @@ def resource_lines(records: list[dict]) -> list[str]:
     """Peak RSS per campaign worker and the mean wall time of a run (for ``table.md``)."""
     rss: dict[int, float] = {}
     walls = []
+    n_failed = sum(r.get("status") != "ok" for r in records)
     for r in records:
         if "peak_rss_mb" in r:
             w = int(r.get("worker", 0))
@@ -101,19 +117,22 @@ def resource_lines(records: list[dict]) -> list[str]:
                    f"median {float(np.median(list(rss.values()))):.0f} MB "
                    f"({len(rss)} worker processes).")
     if walls:
+        failed = f", {n_failed} of them failed" if n_failed else ""
         out.append(f"Wall time of a run (co-simulation, filters, log): mean "
-                   f"{float(np.mean(walls)):.2f} s over {len(walls)} runs.")
+                   f"{float(np.mean(walls)):.2f} s over {len(walls)} runs{failed}.")
     return out
 
 
 def write_tables(agg: list[dict], out: Path) -> tuple[Path, Path]:
     md = out / "table.md"
-    lines = ["| variant | estimator | runs | pos. RMSE (m) | x RMSE (m) | y RMSE (m) | vx RMSE "
-             "(m/s) | vy RMSE (m/s) | ANEES | filter time per run (s) | diverged | track lost |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| variant | estimator | runs | failed | NaN | pos. RMSE (m) | x RMSE (m) | "
+             "y RMSE (m) | vx RMSE (m/s) | vy RMSE (m/s) | ANEES | filter time per run (s) | "
+             "diverged | track lost |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in agg:
         lines.append(
-            f"| {r['variant']} | {r['estimator']} | {r['runs']} | {r['rmse_position_m']:.2f} "
+            f"| {r['variant']} | {r['estimator']} | {r['runs']} | {r['failed']} | {r['nan']} | "
+            f"{r['rmse_position_m']:.2f} "
             f"± {r['rmse_position_std_m']:.2f} | {r['rmse_x_m']:.2f} | {r['rmse_y_m']:.2f} | "
             f"{r['rmse_vx_mps']:.4f} | {r['rmse_vy_mps']:.4f} | {r['anees']:.2f} | "
             f"{r['total_time_s']:.2f} | {r['diverged']} | "

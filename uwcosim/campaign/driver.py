@@ -10,10 +10,13 @@ SIGTERM, SIGHUP) aggregates what finished, marks ``report.md`` partial, and rais
 from __future__ import annotations
 
 import json
+import logging
 import os
 import shutil
 import time
 from pathlib import Path
+
+import numpy as np
 
 from uwcosim.campaign.aggregate import (
     aggregate,
@@ -23,12 +26,14 @@ from uwcosim.campaign.aggregate import (
     write_tables,
 )
 from uwcosim.campaign.bound import bound_section, run_bounds
-from uwcosim.campaign.execute import pending_tasks, run_tasks
+from uwcosim.campaign.execute import check_scheduler, pending_tasks, run_tasks
 from uwcosim.campaign.spec import LoadedCampaign
 from uwcosim.core.errors import RunInterrupted, ScenarioError, UwcosimError
+from uwcosim.core.memory import memory_problem
 from uwcosim.core.runguard import signal_name
 from uwcosim.plots.campaign_figures import rmse_per_run, summary_chart
 
+log = logging.getLogger(__name__)
 MANIFEST = "campaign.json"
 
 
@@ -60,10 +65,12 @@ def check_manifest(campaign: LoadedCampaign, out: Path, resume: bool) -> None:
         except (OSError, UnicodeDecodeError, json.JSONDecodeError):
             old = None
         if resume:
-            if not isinstance(old, dict) or "fingerprint" not in old:
+            try:  # a forged or damaged manifest ({"fingerprint": "garbage"}) is unreadable
+                diff = _differences(old["fingerprint"], new)
+            except (TypeError, KeyError, AttributeError):
                 raise ScenarioError(f"{path}: unreadable campaign manifest: cannot check that "
-                                    f"--resume continues the same campaign (use another --out)")
-            diff = _differences(old["fingerprint"], new)
+                                    f"--resume continues the same campaign (use another --out)"
+                                    ) from None
             if diff:
                 raise ScenarioError(f"{campaign.path}: --resume into {out}: the campaign "
                                     f"changed ({'; '.join(diff)}); use another --out")
@@ -77,11 +84,42 @@ def check_manifest(campaign: LoadedCampaign, out: Path, resume: bool) -> None:
     os.replace(tmp, path)
 
 
+#: what a campaign worker process takes (peak RSS of a tan_terrain run: 257 MB), for the
+#: memory estimate of more workers than cores
+WORKER_BYTES = 0.3 * 2**30
+
+
+def worker_count(workers: int | None, n_tasks: int, oversubscribe: bool = False) -> int:
+    """The local processes to start: ``workers`` (default: the cores), capped at the cores
+    unless ``oversubscribe`` (then estimated against the memory limit), and at the runs."""
+    cores = os.cpu_count() or 1
+    if workers is None:
+        workers = cores
+    if workers < 1:
+        raise ScenarioError(f"--workers {workers}: expected a positive number of processes")
+    if workers > cores:
+        if not oversubscribe:
+            log.warning("--workers %d: capped at the %d cores of this machine "
+                        "(--oversubscribe starts them all)", workers, cores)
+            workers = cores
+        else:
+            why = memory_problem(workers * WORKER_BYTES, f"--workers {workers} --oversubscribe"
+                                 f" (about {WORKER_BYTES / 2**30:g} GiB per process)",
+                                 "use fewer workers")
+            if why:
+                raise ScenarioError(why)
+    return max(1, min(workers, n_tasks))
+
+
 def run_campaign(campaign: LoadedCampaign, out: Path, runs: int | None = None,
                  workers: int | None = None, scheduler: str | None = None,
-                 resume: bool = False, figures: bool = True) -> dict:
+                 resume: bool = False, figures: bool = True,
+                 oversubscribe: bool = False) -> dict:
+    """Run the campaign's pending tasks into ``out`` and collect them (see the module)."""
     out = Path(out)
     campaign.tasks(runs, out)  # refuses a bad --runs before anything is written
+    if scheduler:
+        check_scheduler(scheduler)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -91,12 +129,13 @@ def run_campaign(campaign: LoadedCampaign, out: Path, runs: int | None = None,
     tasks = campaign.tasks(runs, out)
     if workers is not None and workers < 1:
         raise ScenarioError(f"--workers {workers}: expected a positive number of processes")
+    if not scheduler:
+        workers = worker_count(workers, len(tasks), oversubscribe)
     if resume or not any(results.glob("*.json")):
         check_manifest(campaign, out, resume)
     results.mkdir(exist_ok=True)
     todo = pending_tasks(tasks, results, resume, campaign.scenario_hashes)
     shutil.copyfile(campaign.path, out / "campaign.toml")
-    workers = workers if workers is not None else (os.cpu_count() or 1)
     start = time.perf_counter()
     failures = 0
     interrupted = None
@@ -147,9 +186,31 @@ def collect(campaign_dir: Path, figures: bool = True, out: Path | None = None,
     if figures:
         figs = rmse_per_run(rows, out) + [summary_chart(rows, out)]
     title = "# Campaign results (partial)" if partial else "# Campaign results"
-    text = f"{title}\n\n{partial}{md.read_text()}\n" + bound_section(rows, Path(campaign_dir)) \
+    failed = sorted({(r["variant"], r["run"], r["error"]) for r in rows if r["status"] != "ok"})
+    nan = sorted({(r["variant"], r["run"], r["estimator"]) for r in rows
+                  if r["status"] == "ok" and r["estimator"] and not r["diverged"]
+                  and not np.isfinite(r["rmse_position_m"])})
+    text = f"{title}\n\n{partial}{problems_text(agg, n_runs, len(failed), len(nan))}" \
+        f"{md.read_text()}\n" + bound_section(rows, Path(campaign_dir)) \
         + "".join(f"![{p.stem}]({p.name})\n\n" for p in figs)
     (out / "report.md").write_text(text)
-    failed = sorted({(r["variant"], r["run"], r["error"]) for r in rows if r["status"] != "ok"})
     return {"runs": n_runs, "table": agg,
-            "failed": [{"variant": v, "run": i, "error": e} for v, i, e in failed]}
+            "failed": [{"variant": v, "run": i, "error": e} for v, i, e in failed],
+            "nan": [{"variant": v, "run": i, "estimator": e} for v, i, e in nan]}
+
+
+def problems_text(agg: list[dict], n_runs: int, n_failed: int, n_nan: int) -> str:
+    """The report's first words when runs failed or gave a NaN RMSE (nothing otherwise)."""
+    if not n_failed and not n_nan:
+        return ""
+    per = sorted({(r["variant"], r["failed"]) for r in agg if r["failed"]})
+    nan = [f"{r['variant']}/{r['estimator']}: {r['nan']}" for r in agg if r["nan"]]
+    parts = []
+    if n_failed:
+        parts.append(f"{n_failed} of {n_runs} runs failed (" +
+                     ", ".join(f"{v}: {k}" for v, k in per) + "; see runs.parquet, column "
+                     "error); they are not in the means")
+    if n_nan:
+        parts.append(f"{n_nan} finished runs have a NaN position RMSE (" + ", ".join(nan) +
+                     "); not in the means")
+    return "**" + "; ".join(parts) + ".**\n\n"

@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -351,6 +352,14 @@ def _pool(tasks: list[Task], workers: int, mp, tmp: str) -> Iterable:
             raise
 
 
+def check_scheduler(scheduler: str) -> None:
+    """Refuse a ``--scheduler`` that is not a dask scheduler address (``tcp://HOST:PORT``)
+    before anything is written."""
+    if not re.fullmatch(r"(?:[a-z][a-z0-9+.-]*://)?[^\s/:]+:\d+/?", scheduler):
+        raise ScenarioError(f"--scheduler {scheduler!r}: not a scheduler address (expected "
+                            f"tcp://HOST:PORT, as dask-scheduler prints it)")
+
+
 def _dask(tasks: list[Task], scheduler: str) -> Iterable:
     try:
         from distributed import Client
@@ -360,7 +369,7 @@ def _dask(tasks: list[Task], scheduler: str) -> Iterable:
                             ) from None
     try:
         client = Client(scheduler, timeout="10s")
-    except OSError as exc:
+    except (OSError, ValueError) as exc:
         raise ScenarioError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
     try:
         futures = client.map(execute_run, tasks, pure=False)

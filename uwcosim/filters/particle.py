@@ -48,6 +48,7 @@ from pydantic import Field, StrictFloat, StrictInt
 from scipy.linalg import solve_triangular
 
 from uwcosim.core.errors import FilterDivergence
+from uwcosim.core.memory import memory_problem
 from uwcosim.core.registry import Registry
 from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.numerics import cholesky, psd_factor, repair_pd
@@ -184,8 +185,17 @@ class ParticleCloud(FilterBase):
 
     def _init_cloud(self) -> None:
         s = self.settings
+        n = s.n_particles
+        # per particle: the cloud and its centred copy, the prediction's draws and
+        # temporaries (about 4 nx), weights, log-likelihoods, resampling indices, the
+        # measurement residuals (about 2 nz): estimated before any of it is allocated
+        nx, nz = self.model.nx, getattr(self.model, "nz", 1)
+        why = memory_problem(float(n) * 8.0 * (6 * nx + 2 * nz + 12),
+                             f"n_particles {n}", "use fewer particles")
+        if why:
+            raise ValueError(why)
         self.resample = RESAMPLERS.get(s.resampling)
-        self.n = n = s.n_particles
+        self.n = n
         self.ess_threshold = s.ess_threshold
         self.logw = np.full(n, -math.log(n))  # normalized log weights, updated in place
         self._w = np.full(n, 1.0 / n)

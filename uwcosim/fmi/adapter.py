@@ -21,6 +21,7 @@ An FMU that asks to stop (co-simulation: FMI 2 ``fmi2Discard`` with ``fmi2Termin
 from __future__ import annotations
 
 import ctypes
+import difflib
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -203,6 +204,7 @@ class FMUAdapter:
     def check_values(self, values: dict, where: str = "") -> dict:
         """Parameters/start values checked against the declared types and converted (native
         Python values); ScenarioError naming the variable and the expected type otherwise."""
+        given = where
         where = where or f"{self.path}: FMU '{self.name}'"
         out = {}
         for name, value in values.items():
@@ -212,6 +214,12 @@ class FMUAdapter:
                 continue
             v = self.fmu_variables.get(name)
             if v is None:
+                if given:  # a scenario key named it: the user's error (exit 2), by that key
+                    near = difflib.get_close_matches(name, list(self.fmu_variables), 3)
+                    hint = f" (nearest: {', '.join(near)})" if near else ""
+                    key = f"{given[:-1]}.{name}'" if given.endswith("'") else given
+                    raise ScenarioError(f"{key}: FMU '{self.name}' "
+                                        f"({self.path.name}) has no variable {name!r}{hint}")
                 raise FMUError(f"{self.path}: FMU '{self.name}' has no variable {name!r}")
             out[name] = coerce(v, value, where)
         return out

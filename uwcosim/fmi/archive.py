@@ -26,6 +26,7 @@ import hashlib
 import os
 import subprocess
 import sys
+import xml.etree.ElementTree as ET
 import zipfile
 import zlib
 from pathlib import Path, PurePosixPath
@@ -128,10 +129,41 @@ def read_model(path: str | Path) -> ModelDescription:
     # lazy: fmpy (0.1 s) once an FMU is opened, not when the master's modules are imported
     from fmpy.model_description import read_model_description
 
+    why = xml_problem(path)
+    if why:
+        raise FMUError(f"{path}: invalid modelDescription.xml: {why}")
     try:
         return read_model_description(str(path), validate=False)
     except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for bad XML
-        raise FMUError(f"{path}: invalid modelDescription.xml ({exc})") from None
+        raise FMUError(f"{path}: invalid modelDescription.xml ({type(exc).__name__}: {exc})"
+                       ) from None
+
+
+def xml_problem(path: str | Path) -> str | None:
+    """What is wrong with the archive's ``modelDescription.xml`` in the user's terms, before
+    fmpy reads it (its messages: "int() argument must be ... not 'NoneType'" for
+    ``fmiVersion="1.0"``, a temporary path that does not exist for a non-UTF-8 file)."""
+    try:
+        if Path(path).is_dir():  # an unzipped FMU folder
+            data = (Path(path) / "modelDescription.xml").read_bytes()
+        else:
+            with zipfile.ZipFile(path) as zf:
+                data = zf.read("modelDescription.xml")
+        root = ET.fromstring(data)
+    except ET.ParseError as exc:
+        return (f"not well-formed XML in its declared encoding ({exc}; an XML file without "
+                f"an encoding declaration must be UTF-8)")
+    except (OSError, KeyError, zipfile.BadZipFile) as exc:
+        return f"cannot be read ({exc})"
+    if root.tag != "fmiModelDescription":
+        return f"the root element is <{root.tag}>, expected <fmiModelDescription>"
+    version = root.get("fmiVersion")
+    if version is None:
+        return "no fmiVersion attribute (expected fmiVersion=\"2.0\" or \"3.0\")"
+    if not version.startswith(("2.", "3.")):
+        return (f"fmiVersion {version!r}: uwcosim runs FMI 2.0 and 3.0 FMUs (FMI 1.0 is not "
+                f"supported; export the model as FMI 2.0 or 3.0)")
+    return None
 
 
 def binary_problems(path: str | Path, md: ModelDescription,

@@ -279,7 +279,8 @@ class Master(SystemChecks):
             role = f.role or (name if name in ROLES else None)
             ad.use_map(entries, role, where, prefix)
         # start values and parameters: every type, checked against the model description now
-        ad.check_values({**f.parameters, **f.start}, f"{self.system.where}: key 'fmus.{name}'")
+        for kind, values in (("parameters", f.parameters), ("start", f.start)):
+            ad.check_values(values, f"{self.system.where}: key 'fmus.{name}.{kind}'")
         return ad
 
     def _continuous_inputs(self, node: Node, name: str) -> Callable | None:

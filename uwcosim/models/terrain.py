@@ -28,11 +28,14 @@ from scipy import ndimage
 from uwcosim.core import bspline
 from uwcosim.core.errors import MapError
 from uwcosim.models.geo import LocalFrame, grid_centre, project_grid
+from uwcosim.models.map_decode import CF_KEYS, LENGTHS, decode, fill_problem, map_memory_problem
 
 PAD = 3
 MAGIC = b"UWCBATH1"
 _HEADER = struct.Struct("<8sii4d")
 EARTH_RADIUS_M = 6_371_000.0
+#: names of the depth variable of a map file, in the order they are looked for
+DEPTH_NAMES = ("depth", "elevation", "z")
 
 
 @dataclass(frozen=True)
@@ -242,7 +245,11 @@ def load_map(path: str | Path, variable: str | None = None, *,
     - ``.npz`` with arrays ``x``, ``y`` (m) and ``depth`` (m, positive down) or ``elevation``
       (m, negative below sea level), shaped ``[len(y), len(x)]``;
     - NetCDF (``.nc``), as GEBCO distributes it: ``x``/``y`` in metres, or ``lon``/``lat``
-      in degrees, and ``elevation`` (or ``depth``, or ``variable``).
+      in degrees, and ``elevation`` (or ``depth``, or ``variable``); read as CF encodes
+      them (``scale_factor``/``add_offset``, ``_FillValue`` refused, ``units`` m/km/ft:
+      :mod:`uwcosim.models.map_decode`).
+
+    A grid above the memory limit (:mod:`uwcosim.core.memory`) is refused before it is used.
 
     A latitude/longitude grid is projected (``projection = "tmerc"``, the default) to the
     local transverse Mercator frame centred on ``origin`` (``(lat, lon)`` in degrees; default:
@@ -253,7 +260,7 @@ def load_map(path: str | Path, variable: str | None = None, *,
     equirectangular projection about its centre (metres from its south-west corner), as
     earlier versions did.
     """
-    arrays, path = _read_arrays(path)
+    arrays, path = _read_arrays(path, variable)
     try:
         return _bathymetry_from_arrays(arrays, variable, str(path), origin, projection,
                                        resolution)
@@ -264,7 +271,7 @@ def load_map(path: str | Path, variable: str | None = None, *,
         raise MapError(f"{path}: map arrays are not numeric ({exc})") from None
 
 
-def _read_arrays(path: str | Path) -> tuple[dict, Path]:
+def _read_arrays(path: str | Path, variable: str | None = None) -> tuple[dict, Path]:
     path = Path(path)
     if not path.is_file():
         raise MapError(f"{path}: map file not found")
@@ -273,7 +280,7 @@ def _read_arrays(path: str | Path) -> tuple[dict, Path]:
             with np.load(path) as data:
                 return {k: data[k] for k in data.files}, path
         if path.suffix in (".nc", ".nc4", ".netcdf"):
-            return _read_netcdf(path), path
+            return _read_netcdf(path, variable), path
         raise MapError(f"{path}: unknown map format (expected .npz or .nc)")
     except MapError:
         raise
@@ -295,17 +302,45 @@ def map_frame(path: str | Path) -> LocalFrame | None:
         raise MapError(f"{path}: {exc}") from None
 
 
-def _read_netcdf(path: Path) -> dict[str, np.ndarray]:
+def _read_netcdf(path: Path, variable: str | None = None) -> dict[str, np.ndarray]:
+    """The variables of a NetCDF map, decoded (:mod:`uwcosim.models.map_decode`: packing,
+    fill values, units); a depth grid too large for the memory limit is refused before its
+    data is read, one with no-data cells after."""
     try:
         import h5netcdf
 
         with h5netcdf.File(path, "r") as f:
-            return {k: np.asarray(v[...]) for k, v in f.variables.items()}
+            return _decoded(f.variables, str(path), variable, lambda v: dict(v.attrs))
     except OSError:
         from scipy.io import netcdf_file  # NetCDF-3 classic files
 
         with netcdf_file(path, "r", mmap=False) as f:
-            return {k: np.array(v[...]) for k, v in f.variables.items()}
+            # scipy keeps a variable's attributes as its instance attributes
+            return _decoded(f.variables, str(path), variable,
+                            lambda v: {k: a for k, a in vars(v).items() if k in CF_KEYS})
+
+
+def _decoded(variables, where: str, variable: str | None, attrs) -> dict[str, np.ndarray]:
+    depth = next((n for n in ([variable] if variable else DEPTH_NAMES) if n in variables), None)
+    if depth is not None:
+        why = map_memory_problem(tuple(variables[depth].shape), where)
+        if why:
+            raise MapError(why)
+    out = {}
+    for k, v in variables.items():
+        raw = np.asarray(v[...])
+        if raw.dtype.kind not in "iuf":  # text, a crs container...: as stored
+            out[k] = raw
+            continue
+        try:
+            out[k], n_fill, fill = decode(k, raw, attrs(v), where, k in LENGTHS or k == depth)
+        except ValueError as exc:
+            raise MapError(str(exc)) from None
+        if k == depth:
+            why = fill_problem(k, out[k], n_fill, fill, where)
+            if why:
+                raise MapError(why)
+    return out
 
 
 def _increasing(axis, name: str, where: str) -> np.ndarray:
@@ -319,10 +354,13 @@ def _bathymetry_from_arrays(arrays: dict, variable: str | None, where: str,
                             origin: tuple[float, float] | None = None,
                             projection: str = "tmerc",
                             resolution: float | None = None) -> Bathymetry:
-    names = [variable] if variable else ["depth", "elevation", "z"]
+    names = [variable] if variable else list(DEPTH_NAMES)
     key = next((n for n in names if n in arrays), None)
     if key is None:
         raise MapError(f"{where}: no depth variable (looked for {', '.join(names)})")
+    why = map_memory_problem(np.shape(arrays[key]), where)
+    if why:
+        raise MapError(why)
     z = np.asarray(arrays[key], dtype=float)
     if key == "elevation":
         z = -z

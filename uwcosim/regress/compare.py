@@ -48,6 +48,7 @@ class SignalResult:
     max_dev: float  # largest |run - baseline| (interpolated at the run's times)
     t_max_dev: float
     note: str = ""
+    band_dev: float = 0.0  # largest distance outside the tube's band before ``tol`` is added
 
     @property
     def ok(self) -> bool:
@@ -101,12 +102,15 @@ class RegressionReport:
                          f"t={r.t_max_dev:g} (tolerance {r.tol:.3g})")
         n_bad = len(self.failures) + len(self.missing) + bool(self.time_problem)
         if self.ok:
-            worst = max(self.results, key=lambda r: r.max_dev / r.tol if r.tol else 0.0,
+            # the margin is how far outside the tube's band (before the value tolerance) a
+            # sample came, as a fraction of that tolerance: a step inside the time tolerance
+            # is 0, not its height
+            worst = max(self.results, key=lambda r: r.band_dev / r.tol if r.tol else 0.0,
                         default=None)
             margin = ""
-            if worst is not None and worst.tol and worst.max_dev > 0:
-                margin = (f"; closest: {worst.name}, deviation {worst.max_dev:.3g} = "
-                          f"{worst.max_dev / worst.tol:.2g} of its tolerance")
+            if worst is not None and worst.tol and worst.band_dev > 0:
+                margin = (f"; closest: {worst.name}, {worst.band_dev:.3g} outside its band = "
+                          f"{worst.band_dev / worst.tol:.2g} of its tolerance")
             elif all(r.max_dev == 0 for r in self.results):
                 margin = " (identical values)"
             lines.append(f"  result: all {len(self.results)} signals pass{margin}")
@@ -220,8 +224,12 @@ def compare_signal(name: str, t_ref, y_ref, t, y, rtol: float, atol: float,
     if (out & ~inside).any() or (out & nan).any():
         k = int(np.argmax(out & (nan | ~inside)))
         note = f"NaN pattern differs from the baseline (first at t={t[k]:g})"
+    outside = np.zeros(t.size)
+    outside[inside] = np.maximum(np.maximum(lo[inside] - y_in, y_in - hi[inside]), 0.0)
+    outside[~np.isfinite(outside)] = 0.0
     res = SignalResult(name, int(t.size), int(out.sum()), tol, float(dev[i]) if t.size else 0.0,
-                       float(t[i]) if t.size else 0.0, note)
+                       float(t[i]) if t.size else 0.0, note,
+                       float(outside.max()) if t.size else 0.0)
     return res, {"t": t, "y": yy, "t_ref": t_ref, "y_ref": yr, "lo": lo - tol, "hi": hi + tol,
                  "out": out}
 
@@ -234,10 +242,13 @@ def select_signals(names: list[str], patterns: list[str] | None) -> list[str]:
 
 def compare_logs(run: str | Path, baseline: str | Path, rtol: float = DEFAULT_RTOL,
                  atol: float = DEFAULT_ATOL, ttol: float = DEFAULT_TTOL,
-                 signals: list[str] | None = None, plot_dir: str | Path | None = None
-                 ) -> RegressionReport:
+                 signals: list[str] | None = None, plot_dir: str | Path | None = None,
+                 allow_shorter: bool = False) -> RegressionReport:
     """Compare the run log ``run`` (file or run directory) with ``baseline``.
 
+    The two must cover the same time span (within ``ttol``): a shorter run fails, and so does
+    a shorter baseline (a one-row baseline would otherwise vouch for a whole run) unless
+    ``allow_shorter``, which compares the common span and says so in a warning line.
     Raises :class:`RegressionInputError` for bad input; returns the report otherwise, and
     writes one diff plot per failing signal into ``plot_dir`` when given.
     """
@@ -265,7 +276,13 @@ def compare_logs(run: str | Path, baseline: str | Path, rtol: float = DEFAULT_RT
                             f"{meta.get('scenario_path', '?')}) differs from the baseline's "
                             f"({h_ref[:12]}, {ref_meta.get('scenario_path', '?')})")
     eps = ttol + 1e-9 * max(1.0, abs(t_ref[-1]))
-    if t[0] > t_ref[0] + eps or t[-1] < t_ref[-1] - eps:
+    run_short = t[0] > t_ref[0] + eps or t[-1] < t_ref[-1] - eps
+    base_short = t_ref[0] > t[0] + eps or t_ref[-1] < t[-1] - eps
+    if base_short and allow_shorter and not run_short:
+        rep.warnings.append(f"the baseline covers only t = {t_ref[0]:g} .. {t_ref[-1]:g} s of "
+                            f"the run's {t[0]:g} .. {t[-1]:g} s (--allow-shorter): the rest "
+                            f"of the run is not compared")
+    elif run_short or base_short:
         rep.time_problem = (f"the run covers t = {t[0]:g} .. {t[-1]:g} s, the baseline "
                             f"{t_ref[0]:g} .. {t_ref[-1]:g} s")
     keep = (t >= lo - ttol) & (t <= hi + ttol)

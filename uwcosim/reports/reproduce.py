@@ -48,7 +48,9 @@ def user_code_lines(meta: dict) -> list[str]:
 
 def reproduce_command(summary: dict, meta: dict, run_dir: Path | None = None) -> str:
     """``uwcosim run SCENARIO --seed N [--set KEY=VALUE ...] [--out DIR]``, shell-quoted
-    (preceded by ``cd DIR &&`` when a user's module came from the run's current folder)."""
+    (preceded by ``cd DIR &&`` when a user's module came from the run's current folder, and
+    by ``UWCOSIM_NUMBA=0`` when the run's kernels were the numpy forms: metadata ``kernels``;
+    the two differ in the last bits, about 1e-11)."""
     scenario = summary.get("scenario_file") or meta.get("scenario_path") or "SCENARIO.toml"
     seed = summary.get("seed", meta.get("seed"))
     words = ["uwcosim", "run", str(scenario)]
@@ -61,4 +63,6 @@ def reproduce_command(summary: dict, meta: dict, run_dir: Path | None = None) ->
         words += ["--out", str(run_dir.with_name(run_dir.name + "-reproduced"))]
     folder = user_code_folder(summary, meta)
     prefix = f"cd {shlex.quote(folder)} && " if folder else ""
+    if meta.get("kernels") == "numpy":
+        prefix += "UWCOSIM_NUMBA=0 "
     return prefix + shlex.join(words)

@@ -31,7 +31,8 @@ def write_figures(run: RunFiles, out: Path) -> list[Path]:
     """``trajectory.png``, ``position_error.png``, ``position_error_norm.png`` and the density
     snapshots (``density_t*.png``, from ``densities.npz``) of ``run`` into ``out``."""
     paths: list[Path] = []
-    if run.has_estimates and position_velocity_indices(run.states)[0]:
+    rows = len(run.cols.get("time", ()))  # a log with no rows (ended before its first step)
+    if rows and run.has_estimates and position_velocity_indices(run.states)[0]:
         args = (run.cols, run.truth, run.estimators, run.states)
         geo = run.meta.get("geo") or {}
         frame = LocalFrame.from_metadata(geo) if geo.get("trajectory_axes") == "latlon" \

@@ -46,7 +46,8 @@ from typing import Protocol
 
 import numpy as np
 
-from uwcosim.core.errors import RunInterrupted, UwcosimError
+from uwcosim.core.errors import OutputError, RunInterrupted, UwcosimError
+from uwcosim.core.jit import ENABLED as JIT_ENABLED
 from uwcosim.core.runguard import run_guard, signal_name
 from uwcosim.core.version import __version__
 from uwcosim.evaluation.summary import evaluate as evaluate_run
@@ -268,12 +269,16 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
     spec = loaded.spec
     bathy = scenario_map(loaded)
     overrides: dict[str, dict] = {}
-    if bathy is not None and spec.map.fmu_parameter:
-        fmu, _, par = spec.map.fmu_parameter.partition(".")
-        if fmu in spec.fmus:
-            overrides[fmu] = {par: str(bathy.write_coefficients(out_dir / MAP_FILE))}
-    if bathy is not None and not overrides:  # the report stage reads the map from here
-        bathy.write_coefficients(out_dir / MAP_FILE)
+    try:
+        if bathy is not None and spec.map.fmu_parameter:
+            fmu, _, par = spec.map.fmu_parameter.partition(".")
+            if fmu in spec.fmus:
+                overrides[fmu] = {par: str(bathy.write_coefficients(out_dir / MAP_FILE))}
+        if bathy is not None and not overrides:  # the report stage reads the map from here
+            bathy.write_coefficients(out_dir / MAP_FILE)
+    except OSError as exc:  # a full disk before the run starts: no half map, a summary
+        (out_dir / MAP_FILE).unlink(missing_ok=True)
+        raise failed_output(out_dir, exc, "the map file; the run did not start") from None
     owner = master is None
     model = None
     if spec.replay is not None:  # the steps are the rows of a recorded file
@@ -392,6 +397,8 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                 meta["bound"] = pcrb.summary()
             if bathy is not None:
                 meta["map"] = MAP_FILE
+            if not JIT_ENABLED:  # the numpy forms of the kernels: other last bits than numba's
+                meta["kernels"] = "numpy"
             if master.variable_maps():  # third-party FMUs: roles, variables and conversions
                 meta["variable_maps"] = master.variable_maps()
             if isinstance(master, ReplaySource):
@@ -444,6 +451,8 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
             failure = RunInterrupted(f"interrupted at t={last_time():g}")
         except UwcosimError as exc:
             failure = exc
+        except OSError as exc:  # the log cannot be written (a full disk): one line
+            failure = output_error(out_dir, exc, "the log")
         finally:
             if not guard.claim():  # the watcher is finalizing and ends the process
                 guard.wait_for_exit()
@@ -461,21 +470,33 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                 if logger is not None:
                     _flush_steps(bank, recorder)  # (an unexpected error: what was recorded)
                     logger.close()
+            except OSError as exc:  # the last rows cannot be written: not ok
+                failure = failure or output_error(out_dir, exc, "the log")
             finally:
                 try:
                     status = "ok" if failure is None else (
                         "interrupted" if isinstance(failure, RunInterrupted) else "failed")
                     error = str(failure or "")
                     if failure is not None:
-                        error = kept(error)
+                        # a log that could not be written is not "kept"
+                        error = error if isinstance(failure, OutputError) else kept(error)
                         failure.args = (error,)
                     elif not completed:  # an unexpected error propagates: say so
                         status, error = "failed", kept("internal error (see the traceback)")
                     elif master.terminated is not None:
                         status = "terminated"
-                    if snapshots is not None:
-                        snapshots.save(out_dir / "densities.npz", list(model.state_names))
-                    finish(status, error)
+                    try:
+                        if snapshots is not None:
+                            try:
+                                snapshots.save(out_dir / "densities.npz",
+                                               list(model.state_names))
+                            except OSError:  # no half-written snapshots
+                                (out_dir / "densities.npz").unlink(missing_ok=True)
+                                raise
+                        finish(status, error)
+                    except OSError as exc:  # a full disk: say failed if a summary fits
+                        failure = failure or output_error(out_dir, exc, "the run's records")
+                        failed_output(out_dir, exc, "the run's records", failure)
                     guard.finished.set()
                 finally:
                     if owner:
@@ -501,5 +522,32 @@ def run_scenario(scenario: LoadedScenario | str | Path, out_dir: str | Path | No
     result = RunResult(out_dir, summary, out_dir / LOG_FILE, summary["status"])
     if report is None or not (loaded.spec.output.figures if figures is None else figures):
         return result
-    report(out_dir, summary=summary)
+    try:
+        report(out_dir, summary=summary)
+    except OSError as exc:  # a full disk after the run: its summary no longer says ok
+        raise failed_output(out_dir, exc, "the report and figures (the run itself finished)",
+                            summary=summary) from None
     return result
+
+
+def output_error(out_dir: Path, exc: OSError, what: str) -> OutputError:
+    """The one-line error of an output the system refused (a full disk, a read-only folder),
+    naming the run directory and what could not be written."""
+    name = f" ({exc.filename})" if exc.filename else ""
+    return OutputError(f"{out_dir}: cannot write {what}: {exc.strerror or exc}{name}"
+                       + (" (the log may be incomplete)" if what == "the log" else ""))
+
+
+def failed_output(out_dir: Path, exc: OSError, what: str, error: OutputError | None = None,
+                  summary: dict | None = None) -> OutputError:
+    """:func:`output_error`, after writing (when it fits) ``summary.json`` with status
+    ``failed``: no summary says ok that is not (the summary's other keys are kept)."""
+    error = error or output_error(out_dir, exc, what)
+    record = {**(summary or {}), "status": "failed", "error": str(error)}
+    record.setdefault("estimators", {})
+    for path in (out_dir / SUMMARY_FILE, out_dir / SIMULATION_FILE):
+        try:
+            write_json(path, record)
+        except OSError:
+            path.unlink(missing_ok=True)  # better no summary than one that says ok
+    return error

@@ -31,8 +31,12 @@ RUN_OUTPUTS = (LOG_FILE, LOG_FILE + ".journal", SIMULATION_FILE, SUMMARY_FILE, "
 def write_json(path: Path, data: dict) -> None:
     """Write ``data`` to ``path`` atomically (a reader never sees half a file)."""
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, sort_keys=True))
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(json.dumps(data, indent=2, sort_keys=True))
+        os.replace(tmp, path)
+    except OSError:  # a full disk: no half-written .tmp left behind
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def read_json(path: Path) -> dict | None:

@@ -24,6 +24,7 @@ from scipy import ndimage
 
 from uwcosim.core.errors import FilterDivergence
 from uwcosim.core.jit import ENABLED
+from uwcosim.core.memory import memory_problem
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.grid.conditional import CompiledConditionalKalman, ConditionalKalman
 from uwcosim.filters.grid.likelihood import GridLikelihood
@@ -34,9 +35,6 @@ from uwcosim.filters.point_mass.grid import GridDensity
 from uwcosim.filters.point_mass.prediction import Prediction
 from uwcosim.filters.point_mass.prediction_kernels import CompiledPrediction
 from uwcosim.filters.settings import MEASUREMENTS, STATES, FilterSettings, Measurements
-
-#: largest grid memory (bytes) a point-mass filter may ask for
-MAX_GRID_BYTES = 4 * 2**30
 
 
 @register("point_mass")
@@ -74,9 +72,9 @@ class PointMassFilter(Estimator):
         if min(n_points) < 5:
             raise ValueError("n_points must be >= 5")
         need = float(np.prod(np.asarray(n_points, dtype=float))) * 8.0 * (2 * n + 6)
-        if need > MAX_GRID_BYTES:  # the grid, its mesh and work arrays
-            raise ValueError(f"n_points {n_points} needs about {need / 2**30:.3g} GiB "
-                             f"(limit {MAX_GRID_BYTES / 2**30:g} GiB): use fewer points")
+        why = memory_problem(need, f"n_points {n_points}", "use fewer points")
+        if why:  # the grid, its mesh and work arrays (uwcosim.core.memory)
+            raise ValueError(why)
         self._keys = [(f"interval_lo_{m}", f"interval_hi_{m}") for m in self.part.names]
         mean, cov = self.x[p], self.P[np.ix_(p, p)]
         if np.any(np.diag(cov) <= 0):

@@ -45,6 +45,7 @@ from pydantic import Field, StrictBool, StrictFloat, StrictInt, StrictStr
 
 from uwcosim.core.errors import FilterDivergence
 from uwcosim.core.jit import ENABLED
+from uwcosim.core.memory import memory_problem
 from uwcosim.filters.base import Estimator, register
 from uwcosim.filters.grid.conditional import CompiledConditionalKalman, ConditionalKalman
 from uwcosim.filters.grid.likelihood import GridLikelihood
@@ -118,6 +119,13 @@ class ProjectionFilter(Estimator):
         M = fft_size(s.grid_factor * (2 * s.K + 1))
         if not self.part.drift_constant:
             M = max(M, fft_size(4 * s.K + 2))
+        # the quadrature grids (M^d points: three work grids, the posterior, the likelihood,
+        # complex FFT buffers: about 12 float64 per point), estimated before they are made
+        why = memory_problem(float(M) ** len(p) * 8.0 * 12,
+                             f"K {s.K}, grid_factor {s.grid_factor:g} ({M}^{len(p)} grid "
+                             f"points)", "use a smaller K or grid_factor")
+        if why:
+            raise ValueError(why)
         mean = self.x[p]
         cov = self.P[np.ix_(p, p)]
         if np.any(np.diag(cov) <= 0):

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from urllib.parse import unquote
 
-from uwcosim.core.errors import ScenarioError
+from uwcosim.core.errors import FMUError, ScenarioError
 from uwcosim.fmi.archive import open_description
 from uwcosim.fmi.varmap import UNITS, canonical_unit, fmu_unit
 from uwcosim.scenario.ssp.params import ParameterBinder
@@ -198,7 +198,11 @@ class FlatReader:
                 raise self.fail(f"component {hname!r}: type {el.type!r} is not supported (only "
                                 f"FMUs, {FMU_TYPE!r})")
             fmu = self._extract(zf, el.source, hname)
-            md = open_description(fmu)
+            try:
+                md = open_description(fmu)
+            except FMUError as exc:  # named by the .ssp and its member, not the temp copy
+                raise FMUError(str(exc).replace(str(fmu), f"{self.where}: component "
+                                                f"{hname!r} ({el.source})")) from None
             variables = {v.name: v for v in md.modelVariables}
             interface = INTERFACES.get(el.implementation)
             if interface is None and md.coSimulation is None:
@@ -215,6 +219,9 @@ class FlatReader:
             edge = _Edge(c.factor, c.offset, c.suppress_units, text)
             for node in (a, b):
                 self.connector(node, text)
+            if a == b:  # it would vanish from the flattened system, leaving the input undriven
+                raise self.fail(f"{text}: connects {end_name(c.start_element, c.start_connector)}"
+                                f" to itself; expected an output and an input")
             self.adj.setdefault(a, []).append((b, edge))
             self.adj.setdefault(b, []).append((a, edge))
 

@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import without_progress
 
 ROOT = Path(__file__).resolve().parents[1]
 SCEN = ROOT / "scenarios" / "tan_terrain.toml"
@@ -48,7 +49,7 @@ def _run(out: Path, items: list[str], fsize: int | None = None) -> subprocess.Co
 
 
 def _check(r: subprocess.CompletedProcess, out: Path, expected: str) -> None:
-    lines = r.stderr.strip().splitlines()
+    lines = without_progress(r.stderr).strip().splitlines()
     assert r.returncode == 1, r.stderr
     assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
     assert expected in lines[0] and str(out) in lines[0], lines[0]

@@ -36,7 +36,7 @@ def _crasher(mode: str, where: str, t: float = 5.0, code: int = 0, fmi2: bool = 
              extra: str = "") -> list[str]:
     fmu = "Crasher_fmi2.fmu" if fmi2 else "Crasher.fmu"
     return ["--set", CHAIN, "--set",
-            f'fmus.crash={{path="../fmus/{fmu}", parameters={{mode={MODES.get(mode, 0)}, '
+            f'fmus.crash={{path="{ROOT / "fmus" / fmu}", parameters={{mode={MODES.get(mode, 0)}, '
             f'where={WHERE.get(where, 0)}, exit_code={code}, crash_time={t}}}{extra}}}']
 
 

@@ -36,7 +36,7 @@ FAULT = ["--set", 'connections=[["vehicle.vx", "dvl.vx"], ["vehicle.vy", "dvl.vy
 
 def _hang(**extra) -> list[str]:
     inner = "".join(f", {k}={v}" for k, v in extra.items())
-    return [*FAULT, "--set", f'fmus.fault={{path="../fmus/FaultInjector.fmu", '
+    return [*FAULT, "--set", f'fmus.fault={{path="{ROOT / "fmus" / "FaultInjector.fmu"}", '
                              f'parameters={{hang_time=3.0, hang_seconds=3600.0}}{inner}}}']
 
 

@@ -30,7 +30,7 @@ from uwcosim.models.protocol import StateSpaceModel
 from uwcosim.models.tan import TANModel, tan_model
 from uwcosim.models.terrain import Bathymetry, load_map, synthetic_bathymetry
 from uwcosim.scenario.loaded import LoadedScenario
-from uwcosim.scenario.schema import model_noise_psds
+from uwcosim.scenario.schema import MapSpec, model_noise_psds
 from uwcosim.scenario.validate import search_dirs, state_problems
 
 
@@ -39,6 +39,12 @@ def scenario_map(loaded: LoadedScenario) -> Bathymetry | None:
     m = loaded.spec.map
     if m is None:
         return None
+    return build_map(loaded, m)
+
+
+def build_map(loaded: LoadedScenario, m: MapSpec) -> Bathymetry:
+    """The bathymetry of the map keys ``m`` (``[map]``, or ``[map]`` with ``[map.truth]``'s
+    overrides), files resolved against the scenario's folder."""
     if m.kind == "file":  # a lat/lon file: projected to the frame of [geo] origin or its centre
         geo = getattr(loaded.spec, "geo", None)
         origin = (geo.origin.lat, geo.origin.lon) if geo is not None and geo.origin else None

@@ -62,6 +62,7 @@ from uwcosim.run.geocolumns import GeoColumns
 from uwcosim.run.provenance import user_code
 from uwcosim.run.recorder import LogRecorder, logged_signals, pattern_problems
 from uwcosim.run.replay import ReplaySource, replay_source
+from uwcosim.run.truth_map import TRUTH_MAP_FILE, scenario_truth_map
 from uwcosim.runlog import RunLogger
 from uwcosim.runlog.columns import LogLayout
 from uwcosim.runlog.rundir import (
@@ -265,11 +266,16 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
     spec = loaded.spec
     bathy = scenario_map(loaded)
     overrides: dict[str, dict] = {}
+    # [map.truth]: the truth's sounder reads its own seafloor (run.truth_map)
+    truth_map = scenario_truth_map(loaded, bathy, spec.run.seed if seed is None else seed) \
+        if bathy is not None else None
     if bathy is not None and spec.map.fmu_parameter:
         fmu, _, par = spec.map.fmu_parameter.partition(".")
         if fmu in spec.fmus:
-            overrides[fmu] = {par: str(bathy.write_coefficients(out_dir / MAP_FILE))}
-    if bathy is not None and not overrides:  # the report stage reads the map from here
+            truth_file = bathy.write_coefficients(out_dir / MAP_FILE) if truth_map is None \
+                else truth_map.write_coefficients(out_dir / TRUTH_MAP_FILE)
+            overrides[fmu] = {par: str(truth_file)}
+    if bathy is not None and (not overrides or truth_map is not None):  # the report's map
         bathy.write_coefficients(out_dir / MAP_FILE)
     owner = master is None
     model = None
@@ -372,6 +378,8 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                     meta["user_code"] = code
             if bathy is not None:
                 meta["map"] = MAP_FILE
+            if truth_map is not None:  # only then: earlier logs' metadata unchanged
+                meta["map_truth"] = TRUTH_MAP_FILE
             if master.variable_maps():  # third-party FMUs: roles, variables and conversions
                 meta["variable_maps"] = master.variable_maps()
             if isinstance(master, ReplaySource):

@@ -1,4 +1,4 @@
-"""The truth's seafloor when it is not the filters' map (no inverse crime): :func:`truth_bathymetry`.
+"""The truth's seafloor when it is not the filters' map (no inverse crime).
 
 The filters' map is a survey of the seafloor; the seafloor the DepthSounder FMU measures is
 the survey's spline plus what the survey got wrong::

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from uwcosim.filters.base import FilterBase, register
+from uwcosim.filters.gating import GateSettings
 from uwcosim.filters.numerics import (
     gain_and_nis,
     joseph_update,
@@ -31,7 +32,7 @@ from uwcosim.filters.settings import FilterSettings, Measurements, measurements_
 class ExtendedKalmanFilter(FilterBase):
     """EKF: ``x = f(x, u)``, ``P = F P F' + Q``; update with ``H = dh/dx`` at the prior mean."""
 
-    class Settings(FilterSettings):
+    class Settings(GateSettings):  # gate_probability: filters.gating
         measurements: Measurements = measurements_field()
 
     def __init__(self, model, x0, P0, **settings) -> None:

@@ -225,6 +225,13 @@ class ModelSpec(Strict):
         "that the filters' Q includes, mapped through the step's Jacobian in the controls "
         "(tan model; default: none)")
 
+    #: the filters know their map is imperfect: its error's variance is added to the depth
+    #: sounder's R (tan model)
+    map_error_std_m: NonNegativeFloat = Field(
+        0.0, description="standard deviation (m) of the map's error as the filters assume it: "
+        "R of the depth sounder = sigma^2 + map_error_std_m^2 (tan model; default 0: the map "
+        "is exact)")
+
     @model_validator(mode="after")
     def _kind_or_type(self) -> ModelSpec:
         if self.type is not None and "kind" in self.model_fields_set:

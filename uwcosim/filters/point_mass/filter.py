@@ -33,7 +33,8 @@ from uwcosim.filters.point_mass.bayes_kernels import CompiledBayesUpdate
 from uwcosim.filters.point_mass.grid import GridDensity
 from uwcosim.filters.point_mass.prediction import Prediction
 from uwcosim.filters.point_mass.prediction_kernels import CompiledPrediction
-from uwcosim.filters.settings import MEASUREMENTS, STATES, FilterSettings, Measurements
+from uwcosim.filters.robust import RobustSettings
+from uwcosim.filters.settings import MEASUREMENTS, STATES, Measurements
 
 #: largest grid memory (bytes) a point-mass filter may ask for
 MAX_GRID_BYTES = 4 * 2**30
@@ -43,7 +44,7 @@ MAX_GRID_BYTES = 4 * 2**30
 class PointMassFilter(Estimator):
     """Grid (point-mass) Bayes filter with a grid re-centred on the support every step."""
 
-    class Settings(FilterSettings):
+    class Settings(RobustSettings):  # student_t_nu: filters.robust
         n_points: StrictInt | list[StrictInt] = Field(101, description="grid points per gridded "
                                                       "state (>= 5; one value or one per state)")
         span: StrictFloat = Field(8.0, gt=0, description="half-width of the grid in standard "
@@ -66,10 +67,10 @@ class PointMassFilter(Estimator):
         p = self.part.p
         n = len(p)
         #: the steps run their compiled forms (two gridded states)
-        self.fast = bool(kernels and n == 2)
+        self.fast = bool(kernels and n == 2 and s.student_t_nu is None)
         kalman = CompiledConditionalKalman if self.fast else ConditionalKalman
         self.kalman = kalman(model, self.part, self.x, self.P, s.long_run)
-        self.likelihood = GridLikelihood(model, self.part)
+        self.likelihood = GridLikelihood(model, self.part, s.student_t_nu)
         n_points = [int(v) for v in np.broadcast_to(np.asarray(s.n_points), (n,))]
         if min(n_points) < 5:
             raise ValueError("n_points must be >= 5")

@@ -63,14 +63,15 @@ from uwcosim.filters.projection.series import (
     symmetric_interval,
 )
 from uwcosim.filters.projection.series_kernels import CompiledSeriesOps
-from uwcosim.filters.settings import MEASUREMENTS, STATES, FilterSettings, Measurements
+from uwcosim.filters.robust import RobustSettings
+from uwcosim.filters.settings import MEASUREMENTS, STATES, Measurements
 
 
 @register("pfm_psi")
 class ProjectionFilter(Estimator):
     """PFM-PSI projection filter (complex-exponential Galerkin projection of the FPE)."""
 
-    class Settings(FilterSettings):
+    class Settings(RobustSettings):  # student_t_nu: filters.robust
         K: StrictInt = Field(10, ge=1, description="highest harmonic per dimension")
         k_sigma: StrictFloat = Field(4.0, gt=0, description="half-width of the box (eq. 33) in "
                                      "predicted standard deviations")
@@ -110,10 +111,10 @@ class ProjectionFilter(Estimator):
         p = self.part.p
         #: the steps run their compiled forms (two gridded states, the settings they cover)
         self.fast = bool(kernels and len(p) == 2 and s.positivity in ("auto", "none")
-                         and s.spectral_filter == 0)
+                         and s.spectral_filter == 0 and s.student_t_nu is None)
         kalman = CompiledConditionalKalman if self.fast else ConditionalKalman
         self.kalman = kalman(model, self.part, self.x, self.P, s.long_run)
-        self.likelihood = GridLikelihood(model, self.part)
+        self.likelihood = GridLikelihood(model, self.part, s.student_t_nu)
         self._keys = [(f"interval_lo_{n}", f"interval_hi_{n}") for n in self.part.names]
         M = fft_size(s.grid_factor * (2 * s.K + 1))
         if not self.part.drift_constant:

@@ -127,3 +127,36 @@ def test_a_sensor_with_a_valid_output_is_not_received_when_it_is_zero():
     bus[2] = 0.0
     m = bank.measure(2, 2.0, bus)
     assert m.received.tolist() == [False, True] and math.isnan(m.z[0])
+
+
+def test_a_run_with_dvl_drift_and_bottom_lock(tan, tmp_path):
+    """The documented set-up (docs/sensor_errors_and_truth_map.md): the bias walks, the DVL
+    samples above maxAltitude are not received, the estimators skip them."""
+    import pyarrow.parquet as pq
+
+    from uwcosim.run.simulate import simulate
+
+    conns = ('connections=[["vehicle.vx", "dvl.vx"], ["vehicle.vy", "dvl.vy"], '
+             '["vehicle.x", "sounder.x"], ["vehicle.y", "sounder.y"], '
+             '["sounder.altitude", "dvl.altitude"]]')
+    from uwcosim.run.factory import scenario_map
+
+    # a threshold between the depths at the start and 20 m east (the track's first 40 s)
+    h0, h1 = scenario_map(tan()).depth(np.array([2000.0, 2020.0]), np.array([18000.0] * 2))
+    thr = float(0.5 * (h0 + h1))
+    loaded = tan([conns, "run.duration=40", f"fmus.dvl.start={{maxAltitude={thr!r}}}",
+                  "sensors.dvl.valid='dvl.bottom_lock'",
+                  "sensors.dvl_drift={outputs=['dvl.bottom_lock'], "
+                  "noise_inputs=['dvl.w_bvx', 'dvl.w_bvy', 'dvl.w_scale'], "
+                  "sigma=[1e-3, 1e-3, 1e-4]}",
+                  "log.signals=['vehicle.*', 'dvl.*', 'sounder.*']",
+                  "estimators={ekf={type='ekf'}}"])
+    out = simulate(loaded, tmp_path / "run", evaluate=False)
+    table = pq.read_table(out / "log.parquet")
+    log = {n: table.column(n).to_numpy() for n in table.column_names}
+    lock = log["dvl.bottom_lock"]
+    assert np.array_equal(lock, (log["sounder.altitude"] <= thr).astype(float))
+    assert 0 < lock.sum() < lock.size
+    assert np.array_equal(log["z.dvl.vx_m.received"][1:], lock[1:] == 1.0)
+    assert np.all(np.isnan(log["z.dvl.vx_m"][1:][lock[1:] == 0.0]))
+    assert np.all(np.diff(log["dvl.b_vx"]) != 0)  # a random walk

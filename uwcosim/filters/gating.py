@@ -16,21 +16,25 @@ is a test of the prior, evaluated before the update it guards). Off by default
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from pydantic import Field, StrictFloat
 from scipy.stats import chi2
 
-from uwcosim.filters.settings import FilterSettings
 from uwcosim.models.protocol import StateSpaceModel
 
 GATE = ("chi-square innovation gate: reject a measurement component whose normalized "
         "innovation exceeds this quantile of chi2(1), e.g. 0.9999 (default: no gate)")
 
 
-class GateSettings(FilterSettings):
-    """The gate's setting, shared by the Kalman-family filters' settings."""
+#: the type of the ``gate_probability`` setting
+GateProbability = StrictFloat | None
 
-    gate_probability: StrictFloat | None = Field(None, gt=0, lt=1, description=GATE)
+
+def gate_field() -> Any:
+    """The ``gate_probability`` setting of a Kalman-family filter (default: no gate)."""
+    return Field(None, gt=0, lt=1, description=GATE)
 
 
 def gate_threshold(probability: float) -> float:

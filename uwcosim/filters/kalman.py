@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from uwcosim.filters.base import FilterBase, register
-from uwcosim.filters.gating import GateSettings
+from uwcosim.filters.gating import GateProbability, gate_field
 from uwcosim.filters.numerics import (
     gain_and_nis,
     joseph_update,
@@ -32,8 +32,9 @@ from uwcosim.filters.settings import FilterSettings, Measurements, measurements_
 class ExtendedKalmanFilter(FilterBase):
     """EKF: ``x = f(x, u)``, ``P = F P F' + Q``; update with ``H = dh/dx`` at the prior mean."""
 
-    class Settings(GateSettings):  # gate_probability: filters.gating
+    class Settings(FilterSettings):
         measurements: Measurements = measurements_field()
+        gate_probability: GateProbability = gate_field()  # filters.gating
 
     def __init__(self, model, x0, P0, **settings) -> None:
         super().__init__(model, x0, P0, **settings)

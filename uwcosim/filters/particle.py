@@ -51,7 +51,7 @@ from uwcosim.core.errors import FilterDivergence
 from uwcosim.core.registry import Registry
 from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.numerics import cholesky, psd_factor, repair_pd
-from uwcosim.filters.robust import RobustSettings, student_t_loglik
+from uwcosim.filters.robust import StudentTNu, student_t_field, student_t_loglik
 from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
 
 Resampler = Callable[[np.ndarray, np.random.Generator], np.ndarray]
@@ -307,10 +307,11 @@ class ParticleFilter(ParticleCloud):
     step).
     """
 
-    class Settings(ParticleCloud.Settings, RobustSettings):  # student_t_nu: filters.robust
+    class Settings(ParticleCloud.Settings):
         roughening: StrictFloat = Field(0.0, ge=0, description="Gordon et al.'s K: jitter "
                                         "after resampling (0 = off)")
         measurements: Measurements = measurements_field()
+        student_t_nu: StudentTNu = student_t_field()  # filters.robust
 
     def __init__(self, model, x0, P0, **kw) -> None:
         super().__init__(model, x0, P0, **kw)

@@ -15,19 +15,23 @@ filter's results change.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from pydantic import Field, StrictFloat
-
-from uwcosim.filters.settings import FilterSettings
 
 NU = ("Student-t measurement likelihood with this many degrees of freedom (robust to "
       "outliers; e.g. 4; default: Gaussian)")
 
 
-class RobustSettings(FilterSettings):
-    """The robust likelihood's setting, shared by the filters that weight by a likelihood."""
+#: the type of the ``student_t_nu`` setting
+StudentTNu = StrictFloat | None
 
-    student_t_nu: StrictFloat | None = Field(None, gt=0, description=NU)
+
+def student_t_field() -> Any:
+    """The ``student_t_nu`` setting of a filter that weights by a likelihood (default:
+    Gaussian)."""
+    return Field(None, gt=0, description=NU)
 
 
 def student_t_loglik(e2: np.ndarray, r: np.ndarray | float, nu: float) -> np.ndarray:

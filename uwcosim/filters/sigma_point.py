@@ -31,9 +31,9 @@ import numpy as np
 from pydantic import Field, StrictBool, StrictFloat
 
 from uwcosim.filters.base import FilterBase, register
-from uwcosim.filters.gating import GateSettings
+from uwcosim.filters.gating import GateProbability, gate_field
 from uwcosim.filters.numerics import factor, gain_and_nis, symmetrize_
-from uwcosim.filters.settings import Measurements, measurements_field
+from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
 
 
 @dataclass(frozen=True)
@@ -110,8 +110,9 @@ class SigmaPointFilter(FilterBase):
     """Predict/update of a sigma-point filter for the :class:`SigmaRule` of
     :meth:`sigma_rule`."""
 
-    class Settings(GateSettings):  # gate_probability: filters.gating
+    class Settings(FilterSettings):
         measurements: Measurements = measurements_field()
+        gate_probability: GateProbability = gate_field()  # filters.gating
 
     def __init__(self, model, x0, P0, **settings) -> None:
         super().__init__(model, x0, P0, **settings)
@@ -171,13 +172,14 @@ class UnscentedKalmanFilter(SigmaPointFilter):
     terrain likelihood needs; 1e-3 as in Wan & van der Merwe makes it nearly an EKF.
     """
 
-    class Settings(GateSettings):  # gate_probability: filters.gating
+    class Settings(FilterSettings):
         alpha: StrictFloat = Field(1.0, gt=0, description="spread of the sigma points (1: the "
                                    "whole uncertainty ellipsoid; 1e-3 nearly an EKF)")
         beta: StrictFloat = Field(2.0, description="prior knowledge of the distribution "
                                   "(2: optimal for Gaussian priors)")
         kappa: StrictFloat = Field(0.0, description="secondary scaling parameter")
         measurements: Measurements = measurements_field()
+        gate_probability: GateProbability = gate_field()  # filters.gating
 
     def sigma_rule(self, n: int) -> SigmaRule:
         s = self.settings
@@ -229,12 +231,13 @@ class CubatureUnscentedKalmanFilter(SigmaPointFilter):
       ``P = P - K P_zz K'`` (sign as in (16)).
     """
 
-    class Settings(GateSettings):  # gate_probability: filters.gating
+    class Settings(FilterSettings):
         a: StrictFloat | None = Field(None, gt=0, description="sigma-point scale of eq. (7) "
                                       "(default sqrt(3/L))")
         redraw: StrictBool = Field(False, description="redraw the measurement points from "
                                    "the predicted moments (eqs. 10-13)")
         measurements: Measurements = measurements_field()
+        gate_probability: GateProbability = gate_field()  # filters.gating
 
     def __init__(self, model, x0, P0, **settings) -> None:
         super().__init__(model, x0, P0, **settings)

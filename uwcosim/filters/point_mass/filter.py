@@ -33,8 +33,8 @@ from uwcosim.filters.point_mass.bayes_kernels import CompiledBayesUpdate
 from uwcosim.filters.point_mass.grid import GridDensity
 from uwcosim.filters.point_mass.prediction import Prediction
 from uwcosim.filters.point_mass.prediction_kernels import CompiledPrediction
-from uwcosim.filters.robust import RobustSettings
-from uwcosim.filters.settings import MEASUREMENTS, STATES, Measurements
+from uwcosim.filters.robust import StudentTNu, student_t_field
+from uwcosim.filters.settings import MEASUREMENTS, STATES, FilterSettings, Measurements
 
 #: largest grid memory (bytes) a point-mass filter may ask for
 MAX_GRID_BYTES = 4 * 2**30
@@ -44,7 +44,7 @@ MAX_GRID_BYTES = 4 * 2**30
 class PointMassFilter(Estimator):
     """Grid (point-mass) Bayes filter with a grid re-centred on the support every step."""
 
-    class Settings(RobustSettings):  # student_t_nu: filters.robust
+    class Settings(FilterSettings):
         n_points: StrictInt | list[StrictInt] = Field(101, description="grid points per gridded "
                                                       "state (>= 5; one value or one per state)")
         span: StrictFloat = Field(8.0, gt=0, description="half-width of the grid in standard "
@@ -53,6 +53,7 @@ class PointMassFilter(Estimator):
         measurements: Measurements = Field(None, description=MEASUREMENTS)
         long_run: StrictBool = Field(True, description="conditional Kalman filter of the other "
                                      "states in its long-run form")
+        student_t_nu: StudentTNu = student_t_field()  # filters.robust
 
     #: False: the numpy forms of the steps even where the compiled ones apply (the reference
     #: they are tested against)

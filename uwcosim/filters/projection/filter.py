@@ -63,15 +63,15 @@ from uwcosim.filters.projection.series import (
     symmetric_interval,
 )
 from uwcosim.filters.projection.series_kernels import CompiledSeriesOps
-from uwcosim.filters.robust import RobustSettings
-from uwcosim.filters.settings import MEASUREMENTS, STATES, Measurements
+from uwcosim.filters.robust import StudentTNu, student_t_field
+from uwcosim.filters.settings import MEASUREMENTS, STATES, FilterSettings, Measurements
 
 
 @register("pfm_psi")
 class ProjectionFilter(Estimator):
     """PFM-PSI projection filter (complex-exponential Galerkin projection of the FPE)."""
 
-    class Settings(RobustSettings):  # student_t_nu: filters.robust
+    class Settings(FilterSettings):
         K: StrictInt = Field(10, ge=1, description="highest harmonic per dimension")
         k_sigma: StrictFloat = Field(4.0, gt=0, description="half-width of the box (eq. 33) in "
                                      "predicted standard deviations")
@@ -97,6 +97,7 @@ class ProjectionFilter(Estimator):
                                          "posterior's mean and covariance after a threshold")
         gate: StrictFloat = Field(5.0, ge=0, description="implausible-measurement gate in "
                                   "standard deviations (0 = off)")
+        student_t_nu: StudentTNu = student_t_field()  # filters.robust
 
     #: False: the numpy forms of the steps even where the compiled ones apply (the reference
     #: they are tested against)

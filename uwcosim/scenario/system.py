@@ -23,6 +23,7 @@ from uwcosim.master.system import Control, System
 from uwcosim.scenario.control_files import control_table
 from uwcosim.scenario.geo import scenario_frame, start_values
 from uwcosim.scenario.load import LoadedScenario
+from uwcosim.scenario.schema import Scenario
 
 
 def to_system(loaded: LoadedScenario) -> System:
@@ -62,7 +63,7 @@ def to_system(loaded: LoadedScenario) -> System:
 OFFSET_CONTROL = "map_truth_offset"
 
 
-def truth_offset_control(spec) -> Control | None:
+def truth_offset_control(spec: Scenario) -> Control | None:
     """The tide or depth-bias offset of ``[map.truth]`` as a control (None without one): its
     table on ``offset_input``, by default ``offset_h`` of the FMU of ``map.fmu_parameter``."""
     m = spec.map

@@ -124,7 +124,8 @@ def test_bad_fmus_are_refused_before_the_run(tan, tmp_path, broken_fmus, kind, e
     (["run.duration=10.5"], "key 'run.duration': must be a whole number of steps"),
     (['estimators.ekf.type="ekff"'], "unknown estimator 'ekff' (valid: "),
     (["estimators.ekf.bogus=1"],
-     "key 'estimators.ekf.bogus': unknown setting for estimator 'ekf' (valid: measurements)"),
+     "key 'estimators.ekf.bogus': unknown setting for estimator 'ekf' (valid: measurements, "
+     "gate_probability)"),
     (['estimators.ekf.policy="guess"'], "unknown lost-measurement policy 'guess'"),
     (['model.sensors=["dvl", "sonar"]'], "unknown sensor 'sonar'"),
     (['controls.psi.target="vehicle.x"'], "'vehicle.x' has causality 'output'"),

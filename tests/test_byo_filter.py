@@ -180,7 +180,7 @@ def test_settings_problems_are_the_built_in_filters_one_liners(example_fmus, tmp
                in ln for ln in lines)
     # the built-in's line, for comparison: the same words
     assert any("key 'estimators.ekf.gate': unknown setting for estimator 'ekf' (valid: "
-               "measurements, compiled)" in ln for ln in lines)
+               "measurements, compiled, gate_probability)" in ln for ln in lines)
     bad = _cli("check", str(SCENARIO), "--set", 'estimators.gated_ekf.gated=["nope"]')
     assert bad.returncode == 2 and "key 'estimators.gated_ekf': gated: unknown measurements " \
         "['nope']" in bad.stderr

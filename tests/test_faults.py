@@ -125,7 +125,7 @@ def test_bad_fmus_are_refused_before_the_run(tan, tmp_path, broken_fmus, kind, e
     (['estimators.ekf.type="ekff"'], "unknown estimator 'ekff' (valid: "),
     (["estimators.ekf.bogus=1"],
      "key 'estimators.ekf.bogus': unknown setting for estimator 'ekf' (valid: measurements, "
-     "compiled)"),
+     "compiled, gate_probability)"),
     (['estimators.ekf.policy="guess"'], "unknown lost-measurement policy 'guess'"),
     (['model.sensors=["dvl", "sonar"]'], "unknown sensor 'sonar'"),
     (['controls.psi.target="vehicle.x"'], "'vehicle.x' has causality 'output'"),

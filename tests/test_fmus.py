@@ -127,7 +127,8 @@ def test_fmu_info(fmu_dir):
     assert "directional derivatives no" in text
     assert any(line.split()[:5] == ["mapFile", "parameter", "fixed", "String", "''"]
                for line in text.splitlines())
-    assert any(line.split() == ["depth_m", "output", "continuous", "Float64", "m", "8"]
+    # value reference 16: after the inputs, parameters and map extent (issue 25's error inputs)
+    assert any(line.split() == ["depth_m", "output", "continuous", "Float64", "m", "16"]
                for line in text.splitlines())
     text2 = fmu_info(fmu_path(fmu_dir, "AUVKinematics", "2.0"))
     assert "FMI version       2.0" in text2 and "continuous states 4" in text2
@@ -237,7 +238,10 @@ def test_dvl_is_direct_feedthrough(fmu_dir, version, interface):
     path = fmu_path(fmu_dir, "DVL", version)
     md = read_model_description(str(path))
     deps = {u.variable.name: sorted(d.name for d in u.dependencies) for u in md.outputs}
-    assert deps == {"vx_m": ["e_vx", "vx"], "vy_m": ["e_vy", "vy"]}
+    # the error states (bias, scale factor) are zero unless their noise inputs drive them
+    assert deps == {"vx_m": ["b_vx", "e_vx", "scale", "vx"],
+                    "vy_m": ["b_vy", "e_vy", "scale", "vy"], "bottom_lock": ["altitude"],
+                    "b_vx": ["b_vx"], "b_vy": ["b_vy"], "scale": ["scale"]}
     inst = Instance(path, interface)
     inst.init()
     rng = np.random.default_rng(1)

@@ -33,10 +33,13 @@ INTERFACES = {
         {"psi", "a", "w_x", "w_y", "w_vx", "w_vy", "w_psi", "w_a"},
         {"x", "y", "vx", "vy", "psi_out"},
     ),
-    "UWCoSim.DVL": ({"vx", "vy", "e_vx", "e_vy"}, {"vx_m", "vy_m"}),
-    "UWCoSim.DepthSounder": ({"x", "y", "e_h"}, {"depth_m"}),
+    "UWCoSim.DVL": ({"vx", "vy", "e_vx", "e_vy", "w_bvx", "w_bvy", "w_scale", "altitude"},
+                    {"vx_m", "vy_m", "bottom_lock"}),
+    "UWCoSim.DepthSounder": ({"x", "y", "e_h", "offset_h", "u_o", "e_o"},
+                             {"depth_m", "altitude"}),
     "UWCoSim.ConstantVelocity": ({"w_px", "w_vx", "w_py", "w_vy"}, {"px", "vx", "py", "vy"}),
-    HARNESS: (set(), {"vehicle.psi_out", "dvl.vx_m", "dvl.vy_m", "sounder.depth_m"}),
+    HARNESS: (set(), {"vehicle.psi_out", "dvl.vx_m", "dvl.vy_m", "dvl.bottom_lock",
+                      "sounder.depth_m", "sounder.altitude"}),
 }
 
 

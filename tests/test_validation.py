@@ -125,7 +125,8 @@ def test_unknown_setting_lists_the_valid_ones_and_rng_seed_are_not_settings():
             load_scenario(SCEN, [f"estimators.pf.{key}=3"])
         msg = str(info.value)
         assert f"key 'estimators.pf.{key}': unknown setting for estimator 'pf' (valid: " \
-               "n_particles, resampling, ess_threshold, roughening, measurements)" in msg
+               "n_particles, resampling, ess_threshold, roughening, measurements, " \
+               "student_t_nu)" in msg
     assert "rng" not in settings_model("pf").model_fields
     assert "seed" not in settings_model("pf").model_fields
 

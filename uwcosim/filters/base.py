@@ -38,6 +38,7 @@ import numpy as np
 
 from uwcosim.core.errors import ScenarioError
 from uwcosim.core.registry import Registry
+from uwcosim.filters.gating import gate, gate_threshold
 from uwcosim.filters.numerics import check_finite
 from uwcosim.filters.settings import FilterSettings, settings_problems
 from uwcosim.models.protocol import StateSpaceModel
@@ -183,6 +184,8 @@ class FilterBase(Estimator):
         self._R_blocks: dict[bytes, np.ndarray] = {}
         self._all_idx = np.arange(model.nz)
         self._all_idx.flags.writeable = False
+        p = getattr(self.settings, "gate_probability", None)  # the Kalman family's gate
+        self._gate_threshold = gate_threshold(p) if p is not None else None
         check_finite("initial state or covariance", self.x, self.P)
 
     def measurements_used(self) -> list[str] | None:
@@ -206,9 +209,11 @@ class FilterBase(Estimator):
         if mask is not None:
             ok &= np.asarray(mask, dtype=bool)
         n = int(np.count_nonzero(ok))
-        if n == ok.size:
-            return self._all_idx  # read-only: the common case, every component
-        return ok.nonzero()[0] if n else None
+        idx = self._all_idx if n == ok.size else ok.nonzero()[0] if n else None
+        if idx is not None and self._gate_threshold is not None:  # filters.gating
+            idx, rejected = gate(self.model, self.x, self.P, z, idx, self._gate_threshold)
+            self.diagnostics["gated"] = float(rejected)
+        return idx  # all components: the read-only _all_idx, the common case
 
     def _R(self, idx: np.ndarray) -> np.ndarray:
         """``R[idx, idx]`` (cached per set of components)."""

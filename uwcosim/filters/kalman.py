@@ -28,6 +28,7 @@ from pydantic import Field, StrictBool
 
 from uwcosim.filters import kalman_kernels
 from uwcosim.filters.base import FilterBase, register
+from uwcosim.filters.gating import GateProbability, gate_field
 from uwcosim.filters.kalman_kernels import NO_DATA, compiled_workspace, raise_for_status
 from uwcosim.filters.numerics import (
     gain_and_nis,
@@ -76,6 +77,7 @@ class ExtendedKalmanFilter(CompiledUpdate, FilterBase):
     class Settings(FilterSettings):
         measurements: Measurements = measurements_field()
         compiled: StrictBool = compiled_field()
+        gate_probability: GateProbability = gate_field()  # filters.gating
 
     def __init__(self, model, x0, P0, **settings) -> None:
         super().__init__(model, x0, P0, **settings)

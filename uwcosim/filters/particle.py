@@ -52,6 +52,7 @@ from uwcosim.core.memory import memory_problem
 from uwcosim.core.registry import Registry
 from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.numerics import cholesky, psd_factor, repair_pd
+from uwcosim.filters.robust import StudentTNu, student_t_field, student_t_loglik
 from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
 
 Resampler = Callable[[np.ndarray, np.random.Generator], np.ndarray]
@@ -320,6 +321,7 @@ class ParticleFilter(ParticleCloud):
         roughening: StrictFloat = Field(0.0, ge=0, description="Gordon et al.'s K: jitter "
                                         "after resampling (0 = off)")
         measurements: Measurements = measurements_field()
+        student_t_nu: StudentTNu = student_t_field()  # filters.robust
 
     def __init__(self, model, x0, P0, **kw) -> None:
         super().__init__(model, x0, P0, **kw)
@@ -335,6 +337,7 @@ class ParticleFilter(ParticleCloud):
         self._Q_factor = getattr(self.model, "Q_factor", None)
         self._noise_key: tuple | None = None
         self._lik_cache: dict[bytes, tuple] = {}
+        self._nu = getattr(self.settings, "student_t_nu", None)  # robust likelihood
 
     # filter -------------------------------------------------------------------------------
     def _noise_factor(self, u, dt: float) -> np.ndarray:
@@ -391,7 +394,12 @@ class ParticleFilter(ParticleCloud):
         # = sum w_i E_i E_i' - y y' + R (the sign of y does not matter)
         self._predictive_nis(E, R, idx.size)
         # log-likelihood -1/2 e' R^-1 e of every particle
-        if diagonal:
+        if self._nu is not None:  # Student-t per component (filters.robust)
+            if not diagonal:
+                raise ValueError("student_t_nu needs a diagonal measurement covariance R")
+            E *= E
+            ll = student_t_loglik(E, np.diag(R)[:, None], self._nu).sum(axis=0)
+        elif diagonal:
             E *= E
             ll = lik @ E
         else:

@@ -34,6 +34,7 @@ from pydantic import Field, StrictBool, StrictFloat
 
 from uwcosim.filters import sigma_kernels
 from uwcosim.filters.base import FilterBase, register
+from uwcosim.filters.gating import GateProbability, gate_field
 from uwcosim.filters.kalman import CompiledUpdate, compiled_field
 from uwcosim.filters.kalman_kernels import Workspace, compiled_workspace, raise_for_status
 from uwcosim.filters.numerics import factor, gain_and_nis, symmetrize_
@@ -117,6 +118,7 @@ class SigmaPointFilter(CompiledUpdate, FilterBase):
     class Settings(FilterSettings):
         measurements: Measurements = measurements_field()
         compiled: StrictBool = compiled_field()
+        gate_probability: GateProbability = gate_field()  # filters.gating
 
     def __init__(self, model, x0, P0, **settings) -> None:
         super().__init__(model, x0, P0, **settings)
@@ -209,6 +211,7 @@ class UnscentedKalmanFilter(SigmaPointFilter):
         kappa: StrictFloat = Field(0.0, description="secondary scaling parameter")
         measurements: Measurements = measurements_field()
         compiled: StrictBool = compiled_field()
+        gate_probability: GateProbability = gate_field()  # filters.gating
 
     def sigma_rule(self, n: int) -> SigmaRule:
         s = self.settings
@@ -267,6 +270,7 @@ class CubatureUnscentedKalmanFilter(SigmaPointFilter):
                                    "the predicted moments (eqs. 10-13)")
         measurements: Measurements = measurements_field()
         compiled: StrictBool = compiled_field()
+        gate_probability: GateProbability = gate_field()  # filters.gating
 
     def __init__(self, model, x0, P0, **settings) -> None:
         super().__init__(model, x0, P0, **settings)

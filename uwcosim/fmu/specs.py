@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import casadi as ca
+import numpy as np
 
 from uwcosim.core.errors import FMUError
 from uwcosim.models.auv_equations import dvl_output, noisy_controls, vehicle_ode
@@ -34,6 +35,7 @@ UNITS: dict[str, dict[str, int]] = {
     "m/s": {"m": 1, "s": -1},
     "m/s2": {"m": 1, "s": -2},
     "rad": {"rad": 1},
+    "1/s": {"s": -1},
 }
 
 #: file name of the default map inside the DepthSounder's resources/ folder
@@ -193,11 +195,36 @@ def _constant_velocity(x, u, p, z):
 
 
 def _dvl(x, u, p, z):
-    return ca.SX(0, 1), dvl_output()(u[0:2], u[2:4])
+    """DVL errors (all zero by default: then ``v_m = v + e`` exactly as eq. 55): bias ``b`` and
+    scale factor ``s`` are random walks (states, ``b' = w_b``, ``s' = w_s``, white noise held
+    over a step as the process noise), ``v_m = (1 + s) v + b + e``; ``bottom_lock`` is 0 when
+    ``maxAltitude > 0`` and the altitude is above it (a sensor's ``valid`` output)."""
+    v, e, altitude = u[0:2], u[2:4], u[7]
+    b, sf = x[0:2], x[2]
+    xdot = ca.vertcat(u[4], u[5], u[6])  # b' = w_b, s' = w_s
+    v_m = dvl_output()((1 + sf) * v + b, e)  # (1 + s) v + b + e
+    lock = ca.if_else(ca.logic_and(p[0] > 0, altitude > p[0]), 0.0, 1.0)
+    return xdot, ca.vertcat(v_m, lock)
+
+
+def _std_normal_cdf(u):
+    return 0.5 * (1.0 + ca.erf(u / np.sqrt(2.0)))
 
 
 def _depth_sounder(x, u, p, z):
-    return ca.SX(0, 1), z[0] + u[2]
+    """``depth_m = h + e_h`` (eq. 55) plus the truth's offset and the sounder's faults, all zero
+    by default: with ``Phi(u_o)`` (``u_o`` standard normal, the sensor's noise) below
+    ``outlierProb`` the return is an outlier ``+ outlierStd * e_o`` (a Gaussian mixture);
+    in the next ``multipathProb`` of probability a multipath return ``multipathFactor * h``
+    (2: the seafloor-surface-seafloor echo)."""
+    h, e_h, offset, u_o, e_o = z[0], u[2], u[3], u[4], u[5]
+    p_out, std_out, p_mp, k_mp = p[0], p[1], p[2], p[3]
+    c = _std_normal_cdf(u_o)
+    outlier = c < p_out
+    multipath = ca.logic_and(c >= p_out, c < p_out + p_mp)
+    hm = ca.if_else(multipath, k_mp * h, h)
+    depth = hm + e_h + offset + ca.if_else(outlier, std_out * e_o, 0.0)
+    return ca.SX(0, 1), ca.vertcat(depth, h - p[4])
 
 
 def _auv_spec() -> ModelSpec:
@@ -253,15 +280,28 @@ def _dvl_spec() -> ModelSpec:
         name="DVL",
         description="Doppler velocity log, eq. (55): measured velocities v + e_v",
         equations=_dvl,
+        states=(
+            Var("b_vx", "m/s", 0.0, "Bias random walk on vx", der_unit="m/s2"),
+            Var("b_vy", "m/s", 0.0, "Bias random walk on vy", der_unit="m/s2"),
+            Var("scale", None, 0.0, "Scale-factor error random walk (1)", der_unit="1/s"),
+        ),
         inputs=(
             Var("vx", "m/s", 0.0, "True velocity vx"),
             Var("vy", "m/s", 0.0, "True velocity vy"),
             Var("e_vx", "m/s", 0.0, "Measurement noise on vx"),
             Var("e_vy", "m/s", 0.0, "Measurement noise on vy"),
+            Var("w_bvx", "m/s2", 0.0, "White noise driving the vx bias (b_vx' = w_bvx)"),
+            Var("w_bvy", "m/s2", 0.0, "White noise driving the vy bias (b_vy' = w_bvy)"),
+            Var("w_scale", "1/s", 0.0, "White noise driving the scale factor"),
+            Var("altitude", "m", 0.0, "Altitude above the seafloor (bottom lock)"),
+        ),
+        params=(
+            Var("maxAltitude", "m", 0.0, "Largest altitude with bottom lock (<= 0: always)"),
         ),
         outputs=(
             Var("vx_m", "m/s", 0.0, "Measured vx"),
             Var("vy_m", "m/s", 0.0, "Measured vy"),
+            Var("bottom_lock", None, 1.0, "1 with bottom lock, 0 above maxAltitude"),
         ),
     )
 
@@ -276,6 +316,16 @@ def _depth_sounder_spec() -> ModelSpec:
             Var("x", "m", 0.0, "East position"),
             Var("y", "m", 0.0, "North position"),
             Var("e_h", "m", 0.0, "Measurement noise on the depth"),
+            Var("offset_h", "m", 0.0, "Tide or depth-bias offset added to the depth"),
+            Var("u_o", None, 0.0, "Standard normal selecting outliers and multipath returns"),
+            Var("e_o", None, 0.0, "Standard normal scaling an outlier"),
+        ),
+        params=(
+            Var("outlierProb", None, 0.0, "Probability of an outlier return"),
+            Var("outlierStd", "m", 0.0, "Standard deviation of an outlier's extra error"),
+            Var("multipathProb", None, 0.0, "Probability of a multipath return"),
+            Var("multipathFactor", None, 2.0, "Depth of a multipath return / true depth"),
+            Var("vehicleDepth", "m", 0.0, "Vehicle depth (altitude = depth - vehicleDepth)"),
         ),
         calc_params=(
             Var("map_xmin", "m", description="Map extent: smallest x"),
@@ -283,7 +333,8 @@ def _depth_sounder_spec() -> ModelSpec:
             Var("map_ymin", "m", description="Map extent: smallest y"),
             Var("map_ymax", "m", description="Map extent: largest y"),
         ),
-        outputs=(Var("depth_m", "m", 0.0, "Measured depth (positive down)"),),
+        outputs=(Var("depth_m", "m", 0.0, "Measured depth (positive down)"),
+                 Var("altitude", "m", 0.0, "True altitude above the seafloor (no noise)")),
         strings=(
             Var("mapFile", None, "", "Path of a UWCBATH1 coefficient file (empty: the "
                 "default map in the FMU's resources)"),

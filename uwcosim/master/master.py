@@ -195,6 +195,9 @@ class Master(SystemChecks):
             for o in s.outputs:
                 with self._collect():
                     self._numeric_slot(o, f"sensors.{sname}.outputs")
+            if s.valid is not None:
+                with self._collect():
+                    self._numeric_slot(s.valid, f"sensors.{sname}.valid")
         self.drivers = drivers
         if not self.problems:
             with self._collect():
@@ -318,8 +321,11 @@ class Master(SystemChecks):
             if s.sigma and not s.noise_inputs and len(s.sigma) != len(s.outputs):
                 raise ScenarioError(f"{self._where(f'sensors.{sname}.sigma')}: additive noise "
                                     f"needs one sigma per output ({len(s.outputs)})")
+        valid = {sname: self._numeric_slot(s.valid, f"sensors.{sname}.valid")
+                 for sname, s in system.sensors.items() if s.valid is not None}
         #: sampling, loss, noise and assembly of the measurements
-        self.sensors = SensorBank(system.sensors, outputs, inputs, measured, self.seed, n)
+        self.sensors = SensorBank(system.sensors, outputs, inputs, measured, self.seed, n,
+                                  valid_slots=valid)
 
     def reset(self, seed: int | None = None) -> None:
         """Prepare another run of the same system (``seed`` or the system's): new noise,

@@ -9,6 +9,8 @@ every sensor, with the master's seeded streams (:func:`~uwcosim.core.rng.stream`
 - **noise** (stream ``sensor-noise:NAME``, standard deviations ``sigma``): into the FMU's noise
   inputs (``noise_inputs``; loaded on the bus before the step that uses them, like the master's
   other sources), or, for a sensor without noise inputs, added to its outputs;
+- **validity**: a sensor with a ``valid`` output (a DVL's bottom lock) is received only when
+  that output is nonzero at the step;
 - **assembly**: ``z`` (the measured sensors' outputs in order, plus additive noise, NaN where
   not received) and the ``received`` mask, one :class:`Measurement` per step, computed once and
   read by the estimators and the logger alike.
@@ -50,7 +52,7 @@ class SensorBank:
 
     def __init__(self, sensors: dict, output_slots: dict[str, np.ndarray],
                  input_slots: dict[str, list[int]], measured: list[str], seed: int,
-                 n: int) -> None:
+                 n: int, valid_slots: dict[str, int] | None = None) -> None:
         self.measured = list(measured)
         self.names = [o for s in self.measured for o in sensors[s].outputs]
         #: the sensor of each component of z
@@ -78,6 +80,10 @@ class SensorBank:
         index = {s: i for i, s in enumerate(self.measured)}
         self._column = np.array([index[s] for s in self.sensor_of], dtype=np.intp)
         self._last: Measurement | None = None
+        # validity outputs: the bus slot per component of z (-1: always valid)
+        valid_slots = valid_slots or {}
+        self._valid = np.array([valid_slots.get(s, -1) for s in self.sensor_of], dtype=np.intp) \
+            if any(s in valid_slots for s in self.measured) else None
 
     @staticmethod
     def _mask_maker(spec, name: str, seed: int, n: int):
@@ -105,6 +111,8 @@ class SensorBank:
         if last is not None and last.k == k:
             return last
         rec = self.received(k)
+        if self._valid is not None:  # e.g. no bottom lock: not received
+            rec = rec & ((self._valid < 0) | (bus[self._valid] != 0.0))
         z = np.where(rec, bus[self.slots] + self.additive.row(k), np.nan)
         self._last = Measurement(k, t, z, rec)
         return self._last

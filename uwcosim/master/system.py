@@ -199,6 +199,9 @@ class Sensor:
     sigma: list[NonNegativeFloat] = field(default_factory=list)
     period: PositiveInt = 1
     loss: Loss | None = None
+    #: an FMU output (FMU.variable): a sample is received only when it is nonzero (a DVL's
+    #: ``bottom_lock``)
+    valid: Str | None = None
 
     @model_validator(mode="after")
     def _same_length(self) -> Sensor:

@@ -2,9 +2,10 @@
 state-space model (:func:`build_model`, from ``[model]`` and the truth settings).
 
 By default the filters are matched to the truth: ``Q`` from the ``[noise]`` PSDs and ``R`` from
-the sensors' ``sigma``; ``model.q_psd`` overrides the former. ``model.control_noise`` names the
-``[noise]`` source on the controls whose PSDs the TAN model's ``Q`` includes (not part of the
-default ``q_psd``). The scenario was validated when
+the sensors' ``sigma``; ``model.q_psd`` overrides the former, ``model.map_error_std_m`` adds
+the map's error variance to the depth sounder's ``R`` (for a truth with ``[map.truth]``).
+``model.control_noise`` names the ``[noise]`` source on the controls whose PSDs the TAN model's
+``Q`` includes (not part of the default ``q_psd``). The scenario was validated when
 it was loaded (:func:`uwcosim.scenario.validate.reference_problems`: sensors, sigma per output,
 the number of PSDs and the sensors the TAN model takes, a map for a depth sensor).
 
@@ -30,7 +31,7 @@ from uwcosim.models.protocol import StateSpaceModel
 from uwcosim.models.tan import TANModel, tan_model
 from uwcosim.models.terrain import Bathymetry, load_map, synthetic_bathymetry
 from uwcosim.scenario.loaded import LoadedScenario
-from uwcosim.scenario.schema import model_noise_psds
+from uwcosim.scenario.schema import MapSpec, model_noise_psds
 from uwcosim.scenario.validate import search_dirs, state_problems
 
 
@@ -39,6 +40,12 @@ def scenario_map(loaded: LoadedScenario) -> Bathymetry | None:
     m = loaded.spec.map
     if m is None:
         return None
+    return build_map(loaded, m)
+
+
+def build_map(loaded: LoadedScenario, m: MapSpec) -> Bathymetry:
+    """The bathymetry of the map keys ``m`` (``[map]``, or ``[map]`` with ``[map.truth]``'s
+    overrides), files resolved against the scenario's folder."""
     if m.kind == "file":  # a lat/lon file: projected to the frame of [geo] origin or its centre
         geo = getattr(loaded.spec, "geo", None)
         origin = (geo.origin.lat, geo.origin.lon) if geo is not None and geo.origin else None
@@ -60,8 +67,11 @@ def build_model(loaded: LoadedScenario,
     names = tuple(o for s in sensors for o in s.outputs)
     if m.kind == "tan":
         depth = len(sensors) == 2
-        return tan_model(q, sensors[0].sigma, sensors[1].sigma[0] if depth else None,
-                         bathymetry if depth else None, names, control_psd=qc)
+        sigma_h = sensors[1].sigma[0] if depth else None
+        if depth and m.map_error_std_m > 0:  # R_h = sigma^2 + sigma_map^2
+            sigma_h = float(np.hypot(sigma_h, m.map_error_std_m))
+        return tan_model(q, sensors[0].sigma, sigma_h, bathymetry if depth else None, names,
+                         control_psd=qc)
     r = np.array([sg**2 for s in sensors for sg in s.sigma])
     return constant_velocity_model(q_psd=q, R=np.diag(r), measurement_names=names)
 

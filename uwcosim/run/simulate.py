@@ -65,6 +65,7 @@ from uwcosim.run.preflight import map_parameter_problem
 from uwcosim.run.provenance import user_code
 from uwcosim.run.recorder import LogRecorder, logged_signals, pattern_problems
 from uwcosim.run.replay import ReplaySource, replay_source
+from uwcosim.run.truth_map import TRUTH_MAP_FILE, scenario_truth_map
 from uwcosim.runlog import RunLogger
 from uwcosim.runlog.columns import LogLayout
 from uwcosim.runlog.rundir import (
@@ -269,15 +270,21 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
     spec = loaded.spec
     bathy = scenario_map(loaded)
     overrides: dict[str, dict] = {}
+    # [map.truth]: the truth's sounder reads its own seafloor (run.truth_map)
+    truth_map = scenario_truth_map(loaded, bathy, spec.run.seed if seed is None else seed) \
+        if bathy is not None else None
     try:
         if bathy is not None and spec.map.fmu_parameter:
             fmu, _, par = spec.map.fmu_parameter.partition(".")
             if fmu in spec.fmus:
-                overrides[fmu] = {par: str(bathy.write_coefficients(out_dir / MAP_FILE))}
-        if bathy is not None and not overrides:  # the report stage reads the map from here
+                truth_file = bathy.write_coefficients(out_dir / MAP_FILE) if truth_map is None \
+                    else truth_map.write_coefficients(out_dir / TRUTH_MAP_FILE)
+                overrides[fmu] = {par: str(truth_file)}
+        if bathy is not None and (not overrides or truth_map is not None):  # the report's map
             bathy.write_coefficients(out_dir / MAP_FILE)
     except OSError as exc:  # a full disk before the run starts: no half map, a summary
         (out_dir / MAP_FILE).unlink(missing_ok=True)
+        (out_dir / TRUTH_MAP_FILE).unlink(missing_ok=True)
         raise failed_output(out_dir, exc, "the map file; the run did not start") from None
     owner = master is None
     model = None
@@ -399,6 +406,8 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
                 meta["map"] = MAP_FILE
             if not JIT_ENABLED:  # the numpy forms of the kernels: other last bits than numba's
                 meta["kernels"] = "numpy"
+            if truth_map is not None:  # only then: earlier logs' metadata unchanged
+                meta["map_truth"] = TRUTH_MAP_FILE
             if master.variable_maps():  # third-party FMUs: roles, variables and conversions
                 meta["variable_maps"] = master.variable_maps()
             if isinstance(master, ReplaySource):

@@ -41,6 +41,7 @@ from uwcosim.master.system import (
     PositiveInt,
     Sensor,
     Str,
+    table_problem,
 )
 from uwcosim.scenario.control_files import ControlSpec
 from uwcosim.scenario.geo import GeoSpec, LatLon  # noqa: F401 (error tags)
@@ -116,6 +117,56 @@ class SystemSpec(Strict):
     ssp: Str
 
 
+class SurveyErrorSpec(Strict):
+    """``[map.truth] survey_error``: the survey's error, a correlated Gaussian field."""
+
+    std_m: NonNegativeFloat
+    correlation_m: PositiveFloat = 500.0
+
+
+class MapTruthSpec(Strict):
+    """``[map.truth]``: the seafloor the truth's sounder measures, when it is not the filters'
+    map (:mod:`uwcosim.models.truth_map`). The map keys override ``[map]``'s for the truth only:
+    ``kind``, ``seed``, ``relief_std``, ``file``, ``variable``, ``projection`` give another
+    seafloor altogether; ``extent`` and ``resolution`` alone resample the filters' map's spline
+    onto the truth's grid; then the unresolved relief and the survey error are added."""
+
+    kind: Literal["synthetic", "file"] | None = None
+    seed: Int | None = None
+    extent: tuple[Float, Float, Float, Float] | None = None
+    resolution: PositiveFloat | None = None
+    relief_std: PositiveFloat | None = None
+    file: Str | None = None
+    variable: Str | None = None
+    projection: Literal["tmerc", "equirectangular"] | None = None
+    #: fine-scale relief the survey did not resolve: standard deviation and correlation (m)
+    fine_relief_m: NonNegativeFloat = 0.0
+    fine_scale_m: NonNegativeFloat = 0.0
+    survey_error: SurveyErrorSpec | None = None
+    #: tide or depth-bias offset (m) added to the measured depth, a piecewise-linear
+    #: ``[time, value]`` table: a control on the sounder's ``offset_h`` input
+    offset: list[tuple[Float, Float]] | None = Field(
+        None, description="tide or depth-bias offset (m) over time: piecewise-linear "
+        "[time, value] rows, the truth's sounder only (input 'offset_h' of the sounder)")
+    #: the sounder's input the offset drives (FMU.variable; default: the FMU of fmu_parameter)
+    offset_input: Str | None = None
+
+    @model_validator(mode="after")
+    def _truth(self) -> MapTruthSpec:
+        if self.fine_relief_m > 0 and self.fine_scale_m <= 0:
+            raise ValueError("'fine_relief_m' needs a positive 'fine_scale_m' (m)")
+        if self.offset is not None:
+            problem = table_problem(self.offset)
+            if problem:
+                raise ValueError(f"'offset': {problem}")
+        return self
+
+    def base_keys(self) -> dict[str, Any]:
+        """The keys giving another seafloor than the filters' map (empty: resample it)."""
+        keys = ("kind", "seed", "relief_std", "file", "variable", "projection")
+        return {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
+
+
 class MapSpec(Strict):
     kind: Literal["synthetic", "file"] = "synthetic"
     seed: Int = 7
@@ -130,6 +181,8 @@ class MapSpec(Strict):
     projection: Literal["tmerc", "equirectangular"] = Field(
         "tmerc", description="projection of a latitude/longitude map file: 'tmerc' (local "
         "transverse Mercator at the map's centre or [geo] origin) or 'equirectangular'")
+    #: the truth's seafloor when it is not this map (the filters keep this one)
+    truth: MapTruthSpec | None = None
 
     @model_validator(mode="after")
     def _file(self) -> MapSpec:
@@ -171,6 +224,13 @@ class ModelSpec(Strict):
         None, description="name of the [noise.NAME] source on the vehicle's controls (psi, a) "
         "that the filters' Q includes, mapped through the step's Jacobian in the controls "
         "(tan model; default: none)")
+
+    #: the filters know their map is imperfect: its error's variance is added to the depth
+    #: sounder's R (tan model)
+    map_error_std_m: NonNegativeFloat = Field(
+        0.0, description="standard deviation (m) of the map's error as the filters assume it: "
+        "R of the depth sounder = sigma^2 + map_error_std_m^2 (tan model; default 0: the map "
+        "is exact)")
 
     @model_validator(mode="after")
     def _kind_or_type(self) -> ModelSpec:

@@ -9,7 +9,9 @@ and ``model.truth``: locals and states are logged by their exact names), the fol
 paths are resolved against and the file error messages name. Two things are resolved here,
 above the master: a control read from a file (``[controls.NAME] file``) becomes its table
 (:func:`uwcosim.scenario.control_files.control_table`), and ``[geo] start`` becomes start
-values of the truth's position (:func:`uwcosim.scenario.geo.start_values`).
+values of the truth's position (:func:`uwcosim.scenario.geo.start_values`). A ``[map.truth]
+offset`` (tide or depth bias) becomes the control ``map_truth_offset`` of the sounder's
+``offset_h`` input (:func:`truth_offset_control`).
 """
 
 from __future__ import annotations
@@ -17,10 +19,11 @@ from __future__ import annotations
 import dataclasses
 
 from uwcosim.core.errors import ScenarioError
-from uwcosim.master.system import System
+from uwcosim.master.system import Control, System
 from uwcosim.scenario.control_files import control_table
 from uwcosim.scenario.geo import scenario_frame, start_values
 from uwcosim.scenario.load import LoadedScenario
+from uwcosim.scenario.schema import Scenario
 
 
 def to_system(loaded: LoadedScenario) -> System:
@@ -37,6 +40,9 @@ def to_system(loaded: LoadedScenario) -> System:
         fmus[fmu] = dataclasses.replace(fmus[fmu], start={**fmus[fmu].start, **values})
     controls = {name: control_table(name, c, loaded.base_dir, where)
                 for name, c in spec.controls.items()}
+    offset = truth_offset_control(spec)
+    if offset is not None:
+        controls[OFFSET_CONTROL] = offset
     return System(
         fmus=fmus,
         step=spec.run.step, duration=spec.run.duration,
@@ -51,3 +57,18 @@ def to_system(loaded: LoadedScenario) -> System:
         loop_max_iterations=spec.run.loop_max_iterations, name=spec.name,
         base_dir=loaded.base_dir, where=str(loaded.path),
     )
+
+
+#: the control of a [map.truth] offset (logged as controls.map_truth_offset)
+OFFSET_CONTROL = "map_truth_offset"
+
+
+def truth_offset_control(spec: Scenario) -> Control | None:
+    """The tide or depth-bias offset of ``[map.truth]`` as a control (None without one): its
+    table on ``offset_input``, by default ``offset_h`` of the FMU of ``map.fmu_parameter``."""
+    m = spec.map
+    t = m.truth if m is not None else None
+    if t is None or t.offset is None:
+        return None
+    target = t.offset_input or f"{m.fmu_parameter.partition('.')[0]}.offset_h"
+    return Control(target=target, table=[tuple(r) for r in t.offset])

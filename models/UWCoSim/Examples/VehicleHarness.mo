@@ -21,9 +21,16 @@ equation
   connect(vehicle.vy, dvl.vy);
   dvl.e_vx = 0;
   dvl.e_vy = 0;
+  dvl.w_bvx = 0;
+  dvl.w_bvy = 0;
+  dvl.w_scale = 0;
+  dvl.altitude = sounder.altitude;
   connect(vehicle.x, sounder.x);
   connect(vehicle.y, sounder.y);
   sounder.e_h = 0;
+  sounder.offset_h = 0;
+  sounder.u_o = 0;
+  sounder.e_o = 0;
   annotation (
     experiment(StartTime = 0, StopTime = 100, Tolerance = 1e-10, Interval = 0.1),
     Documentation(info = "<html>

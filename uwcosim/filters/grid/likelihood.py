@@ -18,6 +18,7 @@ import numpy as np
 from uwcosim.core import bspline
 from uwcosim.core.jit import jit
 from uwcosim.filters.grid.partition import Partition
+from uwcosim.filters.robust import student_t_loglik
 
 _TAPS = np.arange(4)
 
@@ -149,9 +150,15 @@ def _diff(v: np.ndarray, a: np.ndarray, axis: int) -> np.ndarray:
 class GridLikelihood:
     """Log-likelihood of the gridded measurement rows on a tensor grid of the gridded states."""
 
-    def __init__(self, model, part: Partition) -> None:
+    def __init__(self, model, part: Partition, nu: float | None = None) -> None:
         self.model = model
         self.part = part
+        #: Student-t degrees of freedom of every row (None: Gaussian; filters.robust)
+        self.nu = nu
+        if nu is not None:
+            R = np.asarray(model.R)
+            if np.count_nonzero(R - np.diag(np.diag(R))):
+                raise ValueError("student_t_nu needs a diagonal measurement covariance R")
         self.terrain_rows: dict[int, TerrainGrid] = {}
         terrain = getattr(model, "terrain", None)
         if terrain is not None and len(part.p) == 2:
@@ -172,6 +179,9 @@ class GridLikelihood:
         h = self.terrain_rows[r].depth(axes[0], axes[1])
         var = float(self.model.R[r, r])
         e = h - float(z[r])
+        if self.nu is not None:
+            return self._student_t(e[..., None], np.array([var]), axes, h[..., None],
+                                   resolution)
         if resolution is None:
             e *= e
             e *= -0.5 / var
@@ -197,6 +207,20 @@ class GridLikelihood:
         e += np.log(extra)
         e *= -0.5
         return e
+
+    def _student_t(self, e, r, axes, pred, resolution) -> np.ndarray:
+        """The Student-t form of :meth:`loglik` (:func:`uwcosim.filters.robust.student_t_loglik`
+        per row, variances ``r``, inflated by the representation error as the Gaussian's)."""
+        var = np.broadcast_to(r, e.shape)
+        if resolution is not None:
+            extra = np.zeros(e.shape)
+            for d, a in enumerate(axes):
+                if a.size >= 3:
+                    g = _diff(pred, a, d)
+                    extra += g * g * (float(resolution[d]) ** 2 / 12.0)
+            var = var + extra
+            return np.sum(student_t_loglik(e * e, var, self.nu) - 0.5 * np.log(var), axis=-1)
+        return np.sum(student_t_loglik(e * e, var, self.nu), axis=-1)
 
     def loglik(
         self, axes: list[np.ndarray], z: np.ndarray, rows: list[int], x_full, resolution=None
@@ -227,6 +251,8 @@ class GridLikelihood:
                 pred[..., c] = hb[:, r].reshape(shape)
         e = z[rows] - pred
         R = self.model.R[np.ix_(rows, rows)]
+        if self.nu is not None:
+            return self._student_t(e, np.diag(R), axes, pred, resolution)
         if resolution is None:
             if len(rows) == 1:
                 return -0.5 * e[..., 0] ** 2 / R[0, 0]

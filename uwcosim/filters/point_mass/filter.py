@@ -34,6 +34,7 @@ from uwcosim.filters.point_mass.bayes_kernels import CompiledBayesUpdate
 from uwcosim.filters.point_mass.grid import GridDensity
 from uwcosim.filters.point_mass.prediction import Prediction
 from uwcosim.filters.point_mass.prediction_kernels import CompiledPrediction
+from uwcosim.filters.robust import StudentTNu, student_t_field
 from uwcosim.filters.settings import MEASUREMENTS, STATES, FilterSettings, Measurements
 
 
@@ -50,6 +51,7 @@ class PointMassFilter(Estimator):
         measurements: Measurements = Field(None, description=MEASUREMENTS)
         long_run: StrictBool = Field(True, description="conditional Kalman filter of the other "
                                      "states in its long-run form")
+        student_t_nu: StudentTNu = student_t_field()  # filters.robust
 
     #: False: the numpy forms of the steps even where the compiled ones apply (the reference
     #: they are tested against)
@@ -64,10 +66,10 @@ class PointMassFilter(Estimator):
         p = self.part.p
         n = len(p)
         #: the steps run their compiled forms (two gridded states)
-        self.fast = bool(kernels and n == 2)
+        self.fast = bool(kernels and n == 2 and s.student_t_nu is None)
         kalman = CompiledConditionalKalman if self.fast else ConditionalKalman
         self.kalman = kalman(model, self.part, self.x, self.P, s.long_run)
-        self.likelihood = GridLikelihood(model, self.part)
+        self.likelihood = GridLikelihood(model, self.part, s.student_t_nu)
         n_points = [int(v) for v in np.broadcast_to(np.asarray(s.n_points), (n,))]
         if min(n_points) < 5:
             raise ValueError("n_points must be >= 5")

@@ -313,7 +313,9 @@ class BayesUpdate:
         ``loglik`` is the log of the predictive density ``integral p(x) N(z; h(x), R) dx``
         (up to the constant of ``R``); relative to a perfect match it is below
         ``-chi2_quantile / 2`` when the prior puts no mass where ``z`` could have come from
-        (probability ``P(|N(0,1)| > gate)`` for a consistent prior).
+        (probability ``P(|N(0,1)| > gate)`` for a consistent prior). With a Student-t likelihood
+        (``student_t_nu``) the threshold is the t density at the quantile of the same tail
+        probability, per row (a far heavier tail: an outlier is then plausible).
         """
         if not self.settings.gate:
             return True
@@ -329,7 +331,12 @@ class BayesUpdate:
             s = self.settings
             m = len(rows_g)
             p_tail = float(special.erfc(s.gate / np.sqrt(2.0)))
-            thr = -0.5 * float(special.chdtri(m, p_tail))
+            nu = self.likelihood.nu
+            if nu is None:
+                thr = -0.5 * float(special.chdtri(m, p_tail))
+            else:  # Student-t rows (filters.robust): each at its own two-sided tail quantile
+                q = float(special.stdtrit(nu, 1.0 - 0.5 * p_tail))
+                thr = -0.5 * (nu + 1.0) * m * float(np.log1p(q * q / nu))
             if s.resolution_inflation:  # loglik then includes -log det(R + inflation) / 2
                 thr -= 0.5 * float(np.linalg.slogdet(self.R[np.ix_(key, key)])[1])
             self._gate_ll[key] = thr

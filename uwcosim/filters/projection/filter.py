@@ -64,6 +64,7 @@ from uwcosim.filters.projection.series import (
     symmetric_interval,
 )
 from uwcosim.filters.projection.series_kernels import CompiledSeriesOps
+from uwcosim.filters.robust import StudentTNu, student_t_field
 from uwcosim.filters.settings import MEASUREMENTS, STATES, FilterSettings, Measurements
 
 
@@ -97,6 +98,7 @@ class ProjectionFilter(Estimator):
                                          "posterior's mean and covariance after a threshold")
         gate: StrictFloat = Field(5.0, ge=0, description="implausible-measurement gate in "
                                   "standard deviations (0 = off)")
+        student_t_nu: StudentTNu = student_t_field()  # filters.robust
 
     #: False: the numpy forms of the steps even where the compiled ones apply (the reference
     #: they are tested against)
@@ -111,10 +113,10 @@ class ProjectionFilter(Estimator):
         p = self.part.p
         #: the steps run their compiled forms (two gridded states, the settings they cover)
         self.fast = bool(kernels and len(p) == 2 and s.positivity in ("auto", "none")
-                         and s.spectral_filter == 0)
+                         and s.spectral_filter == 0 and s.student_t_nu is None)
         kalman = CompiledConditionalKalman if self.fast else ConditionalKalman
         self.kalman = kalman(model, self.part, self.x, self.P, s.long_run)
-        self.likelihood = GridLikelihood(model, self.part)
+        self.likelihood = GridLikelihood(model, self.part, s.student_t_nu)
         self._keys = [(f"interval_lo_{n}", f"interval_hi_{n}") for n in self.part.names]
         M = fft_size(s.grid_factor * (2 * s.K + 1))
         if not self.part.drift_constant:

@@ -146,8 +146,10 @@ def wheel_venv(tmp_path_factory):
 
 def _wheel_env(tmp_path) -> dict:
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    # the numpy kernels: a fresh install has no Numba cache (keyed by the source's path), and
+    # its first compile (1-3 min) is not what these tests are about (tests/test_kernel_*.py)
     return {**env, "XDG_CACHE_HOME": str(tmp_path / "cache"),
-            "XDG_DATA_HOME": str(tmp_path / "data")}
+            "XDG_DATA_HOME": str(tmp_path / "data"), "UWCOSIM_NUMBA": "0"}
 
 
 def _run(bindir: Path, *args, cwd, env) -> subprocess.CompletedProcess:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -165,16 +166,31 @@ def test_a_killed_run_can_be_exported(tmp_path, project_fmus, child_env):
     assert lines[0].startswith('"time [s]"') and len(lines) == rows + 1
 
 
+def _vx_reference(fmu: Path) -> str:
+    """The value reference of the DVL FMU's input ``vx`` (the one ``_shared_vr`` gives ``vy``)."""
+    with zipfile.ZipFile(fmu) as z:
+        text = z.read("modelDescription.xml").decode()
+    return re.search(r'name="vx" valueReference="(\d+)"', text).group(1)
+
+
 def _shared_vr(src: Path, dst: Path) -> Path:
     """The DVL FMU with ``vy`` on the value reference of ``vx`` (an invalid FMI 3 FMU)."""
     with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as zout:
         for item in zin.infolist():
             data = zin.read(item)
             if item.filename == "modelDescription.xml":
-                data = data.replace(b'name="vy" valueReference="2"',
-                                    b'name="vy" valueReference="1"').replace(
-                                    b'dependencies="2 4"', b'dependencies="1 4"')
-                assert b'name="vy" valueReference="1"' in data
+                text = data.decode()
+                vx = re.search(r'name="vx" valueReference="(\d+)"', text).group(1)
+                vy = re.search(r'name="vy" valueReference="(\d+)"', text).group(1)
+                text = text.replace(f'name="vy" valueReference="{vy}"',
+                                    f'name="vy" valueReference="{vx}"')
+                def deps(m, vx=vx, vy=vy) -> str:
+                    return 'dependencies="' + " ".join(
+                        vx if d == vy else d for d in m.group(1).split()) + '"'
+
+                text = re.sub(r'dependencies="([\d ]*)"', deps, text)
+                data = text.encode()
+                assert f'name="vy" valueReference="{vx}"'.encode() in data
             zout.writestr(item.filename, data)
     return dst
 
@@ -183,15 +199,16 @@ def test_duplicate_value_references_are_refused_by_run_and_check(tmp_path, proje
                                                                    child_env):
     bad = _shared_vr(project_fmus / "DVL.fmu", tmp_path / "SharedVR.fmu")
     args = ["--set", f'fmus.dvl.path="{bad}"']
+    shared = f"inputs 'vx' and 'vy' share value reference {_vx_reference(bad)}"
     proc = _run(tmp_path / "run", *args, env=child_env)
     assert proc.returncode == 3, proc.stderr
-    assert "inputs 'vx' and 'vy' share value reference 1" in proc.stderr
+    assert shared in proc.stderr
     assert "Traceback" not in proc.stderr
     assert without_progress(proc.stderr).strip().count("\n") == 0
     check = subprocess.run([sys.executable, "-m", "uwcosim", "check", str(SCEN), *LIGHT, *args],
                            cwd=ROOT, env=child_env, capture_output=True, text=True, timeout=120)
     assert check.returncode == 3, check.stdout + check.stderr
-    assert "inputs 'vx' and 'vy' share value reference 1" in check.stdout + check.stderr
+    assert shared in check.stdout + check.stderr
 
 
 def _with_member(src: Path, dst: Path, name: str, size: int) -> Path:
@@ -303,7 +320,7 @@ def _without_token(src: Path, dst: Path) -> Path:
 @pytest.mark.parametrize(("case", "expected"), [
     ("fmu_parameter", "key 'map.fmu_parameter': FMU 'sounder' has no variable 'nope'"),
     ("no_token", "has no instantiationToken (FMI 3.0 requires one)"),
-    ("shared_vr", "inputs 'vx' and 'vy' share value reference 1"),
+    ("shared_vr", "inputs 'vx' and 'vy' share value reference {vr}"),
     ("outside", "key 'fmus.vehicle.start': the vehicle starts at (x, y) = (-500, 18000) m, "
                 "outside the map (x in [0, 25000], y in [0, 25000])"),
 ])
@@ -316,6 +333,7 @@ def test_check_finds_what_run_refuses_at_load(tmp_path, project_fmus, case, expe
     from uwcosim.scenario import load_scenario
 
     dvl = project_fmus / "DVL.fmu"
+    expected = expected.replace("{vr}", _vx_reference(dvl))
     if case == "no_token":
         sets = [f'fmus.dvl.path="{_without_token(dvl, tmp_path / "t.fmu")}"']
     elif case == "shared_vr":

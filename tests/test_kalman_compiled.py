@@ -124,6 +124,17 @@ def test_compiled_needs_a_compiled_form(data):
 
 @needs_numba
 @pytest.mark.parametrize("kind", ["ekf", "ukf"])
+def test_compiled_with_a_gate_is_refused(model, kind):
+    """The chi-square gate (filters.gating) runs in the numpy step only: the pair is refused in
+    one line rather than the gate silently skipped."""
+    cls = ESTIMATORS.get(kind)
+    with pytest.raises(ScenarioError, match="compiled = true has no chi-square gate"):
+        cls.from_settings(model, START, np.diag(STD0**2),
+                          {"compiled": True, "gate_probability": 0.999}, where="[x]")
+
+
+@needs_numba
+@pytest.mark.parametrize("kind", ["ekf", "ukf"])
 def test_compiled_divergence_is_the_numpy_error(model, data, kind):
     zs, x0 = data
     messages = []

@@ -133,7 +133,7 @@ def test_bad_start_values_are_one_line(event_fmus, tmp_path, capsys, key, value,
     sc = scenario(tmp_path, {"tb": {"path": path, key: value}}, 1.0, 0.1)
     assert main(["run", str(sc), "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "key 'fmus.tb'" in err and message in err
+    assert len(err.splitlines()) == 1 and f"key 'fmus.tb.{key}'" in err and message in err
 
 
 @pytest.mark.parametrize(("section", "entry", "message"), [

@@ -368,10 +368,14 @@ def ekf_update(ws, table, x, P, z, use):
 def compiled_workspace(est, model, extra: list[tuple] | None = None) -> Workspace | None:
     """The workspace of a filter whose ``compiled`` setting is on (None: the numpy steps, also
     when Numba is off, :data:`uwcosim.core.jit.ENABLED`); a one-line ValueError when the model
-    offers no compiled form."""
+    offers no compiled form, or with the chi-square gate (``gate_probability``), which only the
+    numpy step applies."""
     # a subclass's own Settings (a user's filter derived from ours) may not declare it
     if not getattr(est.settings, "compiled", False) or not jit.ENABLED:
         return None
+    if getattr(est.settings, "gate_probability", None) is not None:  # filters.gating: numpy only
+        raise ValueError(f"estimator {est.kind}: compiled = true has no chi-square gate "
+                         "(gate_probability); set one of them")
     w = workspace(model, extra)
     if w is None:
         raise ValueError(

@@ -15,8 +15,7 @@ kernel saves over a few thousand steps of a UKF or a PF alone. :func:`point` is
 
 from __future__ import annotations
 
-import math
-
+from uwcosim.core import bicubic
 from uwcosim.core.jit import jit
 
 
@@ -24,54 +23,14 @@ from uwcosim.core.jit import jit
 def depth_rows(table, X, x0, y0, idx, idy, nx, ny, out):
     """``out[n] = h_d(X[n, 0], X[n, 1])`` from the per-cell polynomial table ``table[4 i + j,
     cell]`` of ``u^i v^j`` (``tan._poly_table``), clamped to the grid as ``depth_xy``; a point
-    with a NaN coordinate gives NaN."""
-    umax = nx - 1.0
-    vmax = ny - 1.0
+    with a NaN coordinate gives NaN (:func:`uwcosim.core.bicubic.value`)."""
     for n in range(X.shape[0]):
-        u = (X[n, 0] - x0) * idx
-        v = (X[n, 1] - y0) * idy
-        if math.isnan(u) or math.isnan(v):
-            out[n] = math.nan
-            continue
-        u = min(max(u, 0.0), umax)
-        v = min(max(v, 0.0), vmax)
-        iu = min(int(u), nx - 2)
-        iv = min(int(v), ny - 2)
-        u -= iu
-        v -= iv
-        cell = iv * (nx - 1) + iu
-        q0 = ((table[12, cell] * u + table[8, cell]) * u + table[4, cell]) * u + table[0, cell]
-        q1 = ((table[13, cell] * u + table[9, cell]) * u + table[5, cell]) * u + table[1, cell]
-        q2 = ((table[14, cell] * u + table[10, cell]) * u + table[6, cell]) * u + table[2, cell]
-        q3 = ((table[15, cell] * u + table[11, cell]) * u + table[7, cell]) * u + table[3, cell]
-        out[n] = ((q3 * v + q2) * v + q1) * v + q0
+        out[n] = bicubic.value(table, x0, y0, idx, idy, nx, ny, X[n, 0], X[n, 1])
 
 
 @jit
 def point(table, x, y, x0, y0, idx, idy, nx, ny):
     """``(h_d, dh_d/dx, dh_d/dy)`` at one point: :meth:`FastTerrain._point` compiled (the same
-    operations in the same order; the derivative across a clamped edge is zero)."""
-    u = (x - x0) * idx
-    v = (y - y0) * idy
-    flat_u = not 0.0 <= u <= nx - 1.0
-    flat_v = not 0.0 <= v <= ny - 1.0
-    u = min(max(u, 0.0), nx - 1.0)
-    v = min(max(v, 0.0), ny - 1.0)
-    iu = min(int(u), nx - 2)
-    iv = min(int(v), ny - 2)
-    u -= iu
-    v -= iv
-    cell = iv * (nx - 1) + iu
-    t = table
-    q0 = ((t[12, cell] * u + t[8, cell]) * u + t[4, cell]) * u + t[0, cell]
-    q1 = ((t[13, cell] * u + t[9, cell]) * u + t[5, cell]) * u + t[1, cell]
-    q2 = ((t[14, cell] * u + t[10, cell]) * u + t[6, cell]) * u + t[2, cell]
-    q3 = ((t[15, cell] * u + t[11, cell]) * u + t[7, cell]) * u + t[3, cell]
-    d0 = (3.0 * t[12, cell] * u + 2.0 * t[8, cell]) * u + t[4, cell]
-    d1 = (3.0 * t[13, cell] * u + 2.0 * t[9, cell]) * u + t[5, cell]
-    d2 = (3.0 * t[14, cell] * u + 2.0 * t[10, cell]) * u + t[6, cell]
-    d3 = (3.0 * t[15, cell] * u + 2.0 * t[11, cell]) * u + t[7, cell]
-    h = ((q3 * v + q2) * v + q1) * v + q0
-    hu = 0.0 if flat_u else (((d3 * v + d2) * v + d1) * v + d0) * idx
-    hv = 0.0 if flat_v else ((3.0 * q3 * v + 2.0 * q2) * v + q1) * idy
-    return h, hu, hv
+    operations in the same order, :func:`uwcosim.core.bicubic.value_gradient`; the derivative
+    across a clamped edge is zero)."""
+    return bicubic.value_gradient(table, x0, y0, idx, idy, nx, ny, x, y)

@@ -34,6 +34,7 @@ import numpy as np
 
 from uwcosim.core import bicubic, jit
 from uwcosim.core.errors import FilterDivergence
+from uwcosim.filters.grid.small_linalg import mm, mv
 from uwcosim.filters.numerics import JITTER_START, JITTER_STEPS
 
 OK = 0
@@ -270,26 +271,8 @@ def ekf_predict(ws, x, P):
     Returns the status."""
     s = ws[0]
     F, b, Q = s.F, s.b, s.Q
-    n = x.shape[0]
-    xp = np.empty(n)
-    for i in range(n):
-        v = 0.0
-        for j in range(n):
-            v += F[i, j] * x[j]
-        xp[i] = v + b[i]  # x = f(x, u) = F x + b
-    FP = np.zeros((n, n))
-    for i in range(n):
-        for k in range(n):
-            a = F[i, k]
-            for j in range(n):
-                FP[i, j] += a * P[k, j]
-    A = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            v = 0.0
-            for k in range(n):
-                v += FP[i, k] * F[j, k]
-            A[i, j] = v + Q[i, j]  # P = F P F' + Q
+    xp = mv(F, x) + b  # x = f(x, u) = F x + b
+    A = mm(mm(F, P), F.T) + Q  # P = F P F' + Q
     symmetrize_into(A, P)
     x[:] = xp
     return OK if finite(x, P) else NOT_FINITE
@@ -311,56 +294,18 @@ def ekf_update(ws, table, x, P, z, use):
     y = np.empty(m)
     for k in range(m):
         y[k] = z[rows[k]] - hx[k]  # y = z - h(x)
-    PHt = np.zeros((n, m))
-    for i in range(n):
-        for k in range(n):
-            a = P[i, k]
-            for c in range(m):
-                PHt[i, c] += a * H[c, k]
-    S = np.empty((m, m))
+    R = np.empty((m, m))
     for a in range(m):
         for c in range(m):
-            v = 0.0
-            for k in range(n):
-                v += H[a, k] * PHt[k, c]
-            S[a, c] = v + s.R[rows[a], rows[c]]  # S = H P H' + R
+            R[a, c] = s.R[rows[a], rows[c]]  # the available components' R
+    PHt = mm(P, H.T)
+    S = mm(H, PHt) + R  # S = H P H' + R
     K, nis, repairs, status = gain_and_nis(PHt, S, y)  # K = P H' S^-1
     if status != OK:
         return status, 0.0, 0.0, repairs
-    for i in range(n):
-        v = 0.0
-        for c in range(m):
-            v += K[i, c] * y[c]
-        x[i] += v  # x = x + K y
-    IKH = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            v = 0.0
-            for c in range(m):
-                v += K[i, c] * H[c, j]
-            IKH[i, j] = (1.0 if i == j else 0.0) - v
-    T = np.zeros((n, n))
-    for i in range(n):
-        for k in range(n):
-            a = IKH[i, k]
-            for j in range(n):
-                T[i, j] += a * P[k, j]
-    KR = np.zeros((n, m))
-    for i in range(n):
-        for a in range(m):
-            v = K[i, a]
-            for c in range(m):
-                KR[i, c] += v * s.R[rows[a], rows[c]]
-    A = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            v = 0.0
-            for k in range(n):
-                v += T[i, k] * IKH[j, k]
-            w = 0.0
-            for c in range(m):
-                w += KR[i, c] * K[j, c]
-            A[i, j] = v + w  # P = (I - K H) P (I - K H)' + K R K'
+    x += mv(K, y)  # x = x + K y
+    IKH = np.eye(n) - mm(K, H)
+    A = mm(mm(IKH, P), IKH.T) + mm(mm(K, R), K.T)  # P = (I - K H) P (I - K H)' + K R K'
     symmetrize_into(A, P)
     return (OK if finite(x, P) else NOT_FINITE), nis, float(m), repairs
 

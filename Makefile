@@ -26,8 +26,9 @@ chromium:
 	    { apt-get update -q >/dev/null; apt-get install -y -q chromium >/dev/null; }; } || \
 	  echo "chromium not installed: the HTML report browser tests will be skipped"
 
+# the tests in one process per core (pytest-xdist); `pytest -n 0` runs them in one
 test: fmus chromium
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto
 
 # the wheel alone (part of `make test` too): built, installed into a fresh venv without
 # downloads, run from an empty folder (list/run/campaign/baseline check/demo/docs)

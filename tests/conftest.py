@@ -22,6 +22,17 @@ register()  # every FMU build of the test session includes FaultInjector
 register_crasher()  # and Crasher
 
 
+def pytest_configure(config):
+    """With pytest-xdist (``-n N``: ``make test``), bring ``fmus/`` up to date once, in the
+    controller, before the workers start: otherwise each worker's ``project_fmus`` would build
+    the test FMUs at the same time."""
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
+        return
+    from uwcosim.fmu.build import build_fmus
+
+    build_fmus(ROOT / "fmus")
+
+
 @pytest.fixture(scope="session")
 def project_fmus() -> Path:
     """``fmus/`` with every project FMU, FaultInjector and Crasher, built if missing or out of date

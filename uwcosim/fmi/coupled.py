@@ -43,6 +43,7 @@ from uwcosim.fmi.solvers import (
     ModelExchange,
     NoInput,
     cvode_class,
+    cvode_step,
     dop853,
 )
 
@@ -225,17 +226,8 @@ class CoupledModelExchange:
                 get_nominals=self._cb_get_nominals, set_time=self._cb_set_time,
                 input=NoInput(), startTime=time, maxStep=self.max_step,
                 relativeTolerance=self.rtol, maxNumSteps=MAX_CVODE_STEPS)
-        try:
-            state_event, _, reached = self.cvode.step(time, t_next)
-        except RuntimeError as exc:
-            err, self.cvode.error = self.cvode.error, None
-            if isinstance(err, FMUError):
-                raise err from None
-            info = self.cvode.error_info
-            why = err or (info[3] if info else exc)
-            raise FMUError(f"FMUs {', '.join(self.names)} (integrated together): CVode failed "
-                           f"between t={time:g} and {t_next:g} ({why})") from None
-        return bool(state_event), float(reached)
+        return cvode_step(self.cvode, time, t_next,
+                          f"FMUs {', '.join(self.names)} (integrated together)")
 
     def _step_events(self, t: float, t_end: float) -> float:
         time, same_time, last_event = t, 0, None

@@ -135,6 +135,22 @@ def cvode_class():
     return CVode
 
 
+def cvode_step(cvode, time: float, t_next: float, what: str) -> tuple[bool, float]:
+    """One call of fmpy's CVode solver from ``time`` towards ``t_next``: ``(state event,
+    time reached)``. A failure is an FMUError naming ``what`` (the FMU, or the FMUs integrated
+    together) and why: the FMUError a callback raised, or CVode's own message."""
+    try:
+        state_event, _, reached = cvode.step(time, t_next)
+    except RuntimeError as exc:
+        err, cvode.error = cvode.error, None
+        if isinstance(err, FMUError):
+            raise err from None
+        info = cvode.error_info
+        why = err or (info[3] if info else exc)
+        raise FMUError(f"{what}: CVode failed between t={time:g} and {t_next:g} ({why})") from None
+    return bool(state_event), float(reached)
+
+
 class ModelExchange:
     """Steps one model-exchange FMU instance (see the module docstring).
 
@@ -417,17 +433,8 @@ class ModelExchange:
             return False, t_next
         if self.cvode is None:
             self.cvode = self._make_cvode(time)
-        try:
-            state_event, _, reached = self.cvode.step(time, t_next)
-        except RuntimeError as exc:
-            err, self.cvode.error = self.cvode.error, None
-            if isinstance(err, FMUError):
-                raise err from None
-            info = self.cvode.error_info
-            why = err or (info[3] if info else exc)
-            raise FMUError(f"FMU '{self.inst.name}' ({self.inst.path.name}): CVode failed between "
-                           f"t={time:g} and {t_next:g} ({why})") from None
-        return bool(state_event), float(reached)
+        return cvode_step(self.cvode, time, t_next,
+                          f"FMU '{self.inst.name}' ({self.inst.path.name})")
 
     def _step_events(self, t: float, t_end: float, inputs, input_fn) -> float:
         inst = self.inst

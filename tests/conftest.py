@@ -4,6 +4,7 @@ helpers."""
 
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
 import pytest
@@ -65,3 +66,27 @@ def without_progress(err: str) -> str:
     """``err`` without the progress lines: what is left is the errors and warnings."""
     return "".join(line for line in err.splitlines(keepends=True)
                    if not line.startswith(PROGRESS_LINES))
+
+
+@pytest.fixture
+def cli(capsys):
+    """``uwcosim.cli.main`` in this process: ``cli(*argv) -> (status, stdout, stderr lines)``,
+    with no traceback on stderr and the signal handlers the CLI installs restored."""
+    from uwcosim.cli import main
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP)}
+
+    def run(*argv):
+        try:
+            try:
+                code = main([str(a) for a in argv])
+            except SystemExit as exc:  # argparse
+                code = exc.code
+        finally:
+            for s, h in saved.items():
+                signal.signal(s, h)
+        out, err = capsys.readouterr()
+        assert "Traceback" not in err
+        return code, out, err.strip().splitlines()
+
+    return run

@@ -7,7 +7,6 @@ from __future__ import annotations
 import importlib.util
 import json
 import re
-import signal
 from pathlib import Path
 
 import numpy as np
@@ -16,28 +15,6 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "replay"
 DOC = ROOT / "docs" / "replay.md"
-
-
-@pytest.fixture
-def cli(capsys):
-    from uwcosim.cli import main
-
-    saved = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP)}
-
-    def run(*argv):
-        try:
-            try:
-                code = main([str(a) for a in argv])
-            except SystemExit as exc:
-                code = exc.code
-        finally:
-            for s, h in saved.items():
-                signal.signal(s, h)
-        out, err = capsys.readouterr()
-        assert "Traceback" not in err
-        return code, out, err.strip().splitlines()
-
-    return run
 
 
 def test_the_committed_mission_is_what_the_generator_writes(tmp_path):

@@ -4,7 +4,6 @@ discontinuities, and bad inputs as one-line errors."""
 
 from __future__ import annotations
 
-import signal
 import textwrap
 
 import numpy as np
@@ -76,29 +75,6 @@ K = 10
 [estimators.point_mass]
 type = "point_mass"
 """
-
-
-@pytest.fixture
-def cli(capsys):
-    """``uwcosim.cli.main`` in this process: ``(status, stdout, stderr lines)``."""
-    from uwcosim.cli import main
-
-    saved = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP)}
-
-    def run(*argv):
-        try:
-            try:
-                code = main([str(a) for a in argv])
-            except SystemExit as exc:
-                code = exc.code
-        finally:
-            for s, h in saved.items():
-                signal.signal(s, h)
-        out, err = capsys.readouterr()
-        assert "Traceback" not in err
-        return code, out, err.strip().splitlines()
-
-    return run
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import inspect
 import json
-import signal
 import tomllib
 from pathlib import Path
 from typing import get_args
@@ -21,29 +20,6 @@ from uwcosim.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SCEN = ROOT / "scenarios" / "tan_terrain.toml"
-
-
-@pytest.fixture
-def cli(capsys):
-    """``uwcosim.cli.main`` in this process: ``(status, stdout, stderr lines)``."""
-    from uwcosim.cli import main
-
-    saved = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP)}
-
-    def run(*argv):
-        try:
-            try:
-                code = main(list(argv))
-            except SystemExit as exc:
-                code = exc.code
-        finally:
-            for s, h in saved.items():
-                signal.signal(s, h)
-        out, err = capsys.readouterr()
-        assert "Traceback" not in err
-        return code, out, err.strip().splitlines()
-
-    return run
 
 
 def _sets(*items: str) -> list[str]:

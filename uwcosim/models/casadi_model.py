@@ -5,7 +5,7 @@ step, as the master feeds the FMUs) and an output map ``z = h(x)`` into everythi
 need: ``f`` (one RK4 step), the Jacobians ``F = df/dx`` and ``G = df/dw``, the discrete process
 covariance ``Q = G diag(psd / dt) G'`` (a held white-noise sample of power spectral density
 ``psd`` has variance ``psd / dt``), ``H = dh/dx``, and batch versions for particle and sigma-point
-filters (``casadi.Function.map``). Functions are built once per model.
+filters (:class:`PointwiseMap`, on ``casadi.Function.map``). Functions are built once per model.
 
 With ``control_psd`` (noise on the controls, held over the step, that the truth follows and the
 filters know) ``Q`` adds ``J_u diag(control_psd / dt) J_u'`` with ``J_u = df/du`` at the state
@@ -18,6 +18,23 @@ import casadi as ca
 import numpy as np
 
 from uwcosim.models.auv_equations import rk4_step
+
+
+class PointwiseMap:
+    """A CasADi function ``fn(x, *args)`` evaluated at many points ``x`` in one call
+    (``casadi.Function.map``, built once per number of points)."""
+
+    def __init__(self, fn: ca.Function) -> None:
+        self.fn = fn
+        self._maps: dict[int, ca.Function] = {}
+
+    def __call__(self, X: np.ndarray, *args) -> np.ndarray:
+        """``fn`` at the rows of ``X``: one column per point (CasADi's layout)."""
+        n = X.shape[0]
+        mapped = self._maps.get(n)
+        if mapped is None:
+            mapped = self._maps[n] = self.fn.map(n)
+        return np.asarray(mapped(X.T, *args))
 
 
 class CasadiModel:
@@ -71,8 +88,7 @@ class CasadiModel:
         self.h_fn = h
         xs = ca.MX.sym("x", self.nx)
         self._H = ca.Function("H", [xs], [ca.jacobian(h(xs), xs)])
-        self._f_maps: dict[int, ca.Function] = {}
-        self._h_maps: dict[int, ca.Function] = {}
+        self._f_batch, self._h_batch = PointwiseMap(self.f_fn), PointwiseMap(h)
 
     # single-point evaluations -------------------------------------------------------------
     def f(self, x, u, dt: float) -> np.ndarray:
@@ -101,16 +117,8 @@ class CasadiModel:
 
     # batch evaluations (rows are points) -----------------------------------------------------
     def f_batch(self, X: np.ndarray, u, dt: float) -> np.ndarray:
-        n = X.shape[0]
-        fm = self._f_maps.get(n)
-        if fm is None:
-            fm = self._f_maps[n] = self.f_fn.map(n)
-        return np.asarray(fm(X.T, u, dt)).T
+        return self._f_batch(X, u, dt).T
 
     def h_batch(self, X: np.ndarray) -> np.ndarray:
-        n = X.shape[0]
-        hm = self._h_maps.get(n)
-        if hm is None:
-            hm = self._h_maps[n] = self.h_fn.map(n)
-        return np.asarray(hm(X.T)).T
+        return self._h_batch(X).T
 

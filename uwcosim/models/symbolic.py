@@ -58,7 +58,7 @@ import casadi as ca
 import numpy as np
 
 from uwcosim.core.integrators import rk4
-from uwcosim.models.casadi_model import CasadiModel
+from uwcosim.models.casadi_model import CasadiModel, PointwiseMap
 
 Expr = ca.SX | ca.MX
 
@@ -231,8 +231,7 @@ class SymbolicModel:
         self.linear = not (_depends(self._fq_fn, 0, 0) or _depends(self._H_fn, 0, 0))
         #: ``Q`` depends on the state (the particle filters then factor it at each step)
         self.Q_depends_on_x = _depends(self._fq_fn, 1, 0)
-        self._fmaps: dict[int, ca.Function] = {}
-        self._hmaps: dict[int, ca.Function] = {}
+        self._f_batch, self._h_batch = PointwiseMap(self._f_fn), PointwiseMap(self._h_fn)
         self._step, self._noise_cov, self._h_user = step, noise_cov, h
 
     # single-point evaluations -------------------------------------------------------------
@@ -261,18 +260,10 @@ class SymbolicModel:
 
     # batch evaluations (rows are points) -----------------------------------------------------
     def f_batch(self, X: np.ndarray, u, dt: float) -> np.ndarray:
-        n = X.shape[0]
-        fm = self._fmaps.get(n)
-        if fm is None:
-            fm = self._fmaps[n] = self._f_fn.map(n)
-        return np.asarray(fm(X.T, u, dt)).T
+        return self._f_batch(X, u, dt).T
 
     def h_batch(self, X: np.ndarray) -> np.ndarray:
-        n = X.shape[0]
-        hm = self._hmaps.get(n)
-        if hm is None:
-            hm = self._hmaps[n] = self._h_fn.map(n)
-        return np.asarray(hm(X.T)).reshape(self.nz, n).T
+        return self._h_batch(X).reshape(self.nz, X.shape[0]).T
 
     # the CasADi form the grid filters analyse --------------------------------------------
     @cached_property

@@ -51,10 +51,6 @@ class PointMassFilter(GridFilter):
 
     size_key = "n_points"
 
-    @classmethod
-    def compiles(cls, settings) -> bool:
-        return settings.student_t_nu is None
-
     def __init__(self, model, x0, P0, **settings) -> None:
         super().__init__(model, x0, P0, **settings)  # the partition, Kalman block, likelihood
         s = self.settings

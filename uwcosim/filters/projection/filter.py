@@ -100,8 +100,7 @@ class ProjectionFilter(GridFilter):
 
     @classmethod
     def compiles(cls, settings) -> bool:
-        return (settings.positivity in ("auto", "none") and settings.spectral_filter == 0
-                and settings.student_t_nu is None)
+        return settings.positivity in ("auto", "none") and settings.spectral_filter == 0
 
     def __init__(self, model, x0, P0, **settings) -> None:
         super().__init__(model, x0, P0, **settings)  # the partition, Kalman block, likelihood

@@ -26,16 +26,24 @@ Measured side by side in one run (ratios; the machines are shared and noisy):
    the whole ``simulate`` stage (log, simulation.json, summary.json), best of 10 in a warm
    process.
 
+7. the record of every FMU call that the run-wide watchdog times and a crashed run's report
+   names (:mod:`uwcosim.core.fmucall`): (2) with the record as it is against (2) with its
+   ``begin``/``end`` replaced by empty functions (the calls and their ``try``/``finally``
+   kept), interleaved, best of each; the record's calls per step counted; and the
+   ``begin``/``end`` pair alone against the empty pair (``timeit``).
+
 Goals: (2) at most 1.25x (1); (3) under 2 s; (4) at most 2x fmpy; (5) at most 1.5x the
 single-solver reference; (6) under 20 ms.
-Run: ``.venv/bin/python benchmarks/bench_master.py``.
+Run: ``.venv/bin/python benchmarks/bench_master.py`` (``--record``: item 7 alone).
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 import tempfile
 import time
+import timeit
 from pathlib import Path
 
 import numpy as np
@@ -329,7 +337,94 @@ def fixed_cost(repeats: int = 10) -> tuple[float, float]:
     return min(t_master[2:]), min(t_sim[2:])
 
 
+def call_record(map_file: str, segments: int = 60, steps: int = 200) -> dict[str, float]:
+    """Item 7: seconds per step of one master (3 FMUs, no estimators) run in ``segments``
+    stretches of ``steps`` steps, alternately with the record of every FMU call and with it
+    emptied (best and median of each), the record's calls per step, and the seconds per
+    ``begin``/``end`` pair and per empty pair (best of interleaved ``timeit`` runs)."""
+    from uwcosim.core import fmucall
+
+    real = fmucall.begin, fmucall.end
+    calls = [0]
+
+    def counting(fmu: int, call: int, t: float) -> None:
+        calls[0] += 1
+        real[0](fmu, call, t)
+
+    def empty_begin(fmu: int, call: int, t: float) -> None:
+        pass
+
+    def empty_end() -> None:
+        pass
+
+    loaded = load_scenario(SCENARIO, ["estimators={}",
+                                      f"run.duration={float((segments + 1) * steps)}"])
+    m = Master(to_system(loaded), seed=0)
+    m.initialize({"sounder": {"mapFile": map_file}})
+    on, off = [], []
+    try:
+        fmucall.begin = counting
+        m.run_until(float(steps))  # warm-up, and the count
+        per_step = calls[0] / steps
+        for j in range(segments):
+            empty = j % 2 == 1
+            fmucall.begin, fmucall.end = (empty_begin, empty_end) if empty else real
+            a = time.perf_counter()
+            m.run_until(float((j + 2) * steps))
+            (off if empty else on).append((time.perf_counter() - a) / steps)
+    finally:
+        fmucall.begin, fmucall.end = real
+        m.close()
+    i = fmucall.fmu_index("bench")
+
+    def pair(begin=real[0], end=real[1]) -> None:
+        begin(i, 3, 1.0)
+        try:
+            pass
+        finally:
+            end()
+
+    def empty_pair(begin=empty_begin, end=empty_end) -> None:
+        begin(i, 3, 1.0)
+        try:
+            pass
+        finally:
+            end()
+
+    n = 200_000
+    t_pair, t_empty = [], []
+    for _ in range(7):
+        t_pair.append(timeit.timeit(pair, number=n) / n)
+        t_empty.append(timeit.timeit(empty_pair, number=n) / n)
+    fmucall.clear()
+    return {"with": min(on), "without": min(off), "with_median": float(np.median(on)),
+            "without_median": float(np.median(off)), "calls": per_step, "pair": min(t_pair),
+            "empty": min(t_empty)}
+
+
+def print_call_record(map_file: str) -> None:
+    r = call_record(map_file)
+    w, wo = r["with"], r["without"]
+    wm, wom = r["with_median"], r["without_median"]
+    print(f"the FMU call record (core.fmucall), {r['calls']:.1f} recorded calls per step; "
+          f"one master, 200-step stretches alternately with and without it (best, median):")
+    print(f"  master loop with the record   : {1e6 * w:8.2f} {1e6 * wm:8.2f} us/step")
+    print(f"  master loop, record emptied   : {1e6 * wo:8.2f} {1e6 * wom:8.2f} us/step")
+    print(f"  difference                    : {1e6 * (w - wo):+8.2f} {1e6 * (wm - wom):+8.2f} "
+          f"us/step ({100 * (w / wo - 1):+.1f} %, {100 * (wm / wom - 1):+.1f} %)")
+    print(f"  begin/end pair {1e9 * r['pair']:.0f} ns, empty pair {1e9 * r['empty']:.0f} ns: "
+          f"the record {1e9 * (r['pair'] - r['empty']):.0f} ns per call, "
+          f"{1e6 * r['calls'] * (r['pair'] - r['empty']):.2f} us per step")
+
+
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--record", action="store_true", help="item 7 alone (the FMU call record)")
+    if ap.parse_args().record:
+        with tempfile.TemporaryDirectory() as tmp:
+            map_file = str(synthetic_bathymetry(7).write_coefficients(Path(tmp) / "map.bin"))
+            print_call_record(map_file)
+        return
     with tempfile.TemporaryDirectory() as tmp:
         map_file = str(synthetic_bathymetry(7).write_coefficients(Path(tmp) / "map.bin"))
         raw, ours = [], []
@@ -340,6 +435,7 @@ def main() -> None:
         dr_ekf = ['estimators={dead_reckoning={type="dead_reckoning"}, ekf={type="ekf"}}']
         res = run_scenario(load_scenario(SCENARIO, dr_ekf), Path(tmp) / "run", figures=False)
         demo = time.perf_counter() - a
+        print_call_record(map_file)
     r, o = min(raw), min(ours)
     print(f"raw fmpy loop (3 FMUs)     : {1e6 * r:8.1f} us/step")
     print(f"uwcosim master (3 FMUs)    : {1e6 * o:8.1f} us/step   ratio {o / r:.2f} "

@@ -89,7 +89,7 @@ def test_bayes_terms_match_numpy(terrain, var, inflation):
     h = terrain_depth(ax[0], ax[1], terrain_map)  # the same depths below
     z = float(h[20, 30]) + 1.0
     neg, tmax, vmin = bk.bayes_terms((m, basis.lo, basis.length), tables, terrain_map, z, var,
-                                     inflation, (values, W, S))
+                                     inflation, (values, W, S), True)
     ref_values = po.to_grid(m, basis)
     assert np.allclose(values, ref_values, rtol=0, atol=1e-12 * np.abs(ref_values).max())
     cell = np.prod(basis.length / M)
@@ -253,6 +253,10 @@ def _trajectory(model, steps, seed=1):
     # first steps can agree to round-off
     ("pfm_psi", {"K": 6, "k_sigma": 10.0, "resolution_inflation": 0.0}, 10),
     ("point_mass", {"n_points": 61}, 60),
+    # the Student-t likelihood (filters.robust): the compiled steps too
+    ("pfm_psi", {"K": 10, "student_t_nu": 4.0}, 60),
+    ("pfm_psi", {"K": 10, "student_t_nu": 4.0, "resolution_inflation": 0.0}, 60),
+    ("point_mass", {"n_points": 61, "student_t_nu": 4.0}, 60),
 ])
 def test_filters_same_with_and_without_kernels(terrain, name, settings, steps):
     model = tan_model([0.05, 0.05, 1e-4, 1e-4], 0.03, 2.0, terrain=terrain)

@@ -10,7 +10,7 @@ import pytest
 from uwcosim.filters import particle, sigma_point  # noqa: F401  (register)
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.filters.gating import gate_threshold
-from uwcosim.filters.robust import student_t_loglik
+from uwcosim.filters.robust import student_t_exponent, student_t_loglik
 from uwcosim.models.tan import tan_model
 from uwcosim.models.terrain import synthetic_bathymetry
 
@@ -42,6 +42,21 @@ def test_student_t_tends_to_the_gaussian_as_nu_grows():
     # and its tails are polynomial: a 10-sigma residual costs 7.2 at nu = 4, not 50
     assert float(student_t_loglik(np.array([100.0]), 1.0, 4.0)[0]) == pytest.approx(
         -2.5 * np.log(26.0))
+
+
+def test_the_student_t_exponent_of_a_gaussian_one_is_its_loglik_shifted():
+    """:func:`student_t_exponent` (what the grid filters' compiled steps use) against
+    :func:`student_t_loglik` of the same residuals, to round-off: a 10 sigma tail included."""
+    rng = np.random.default_rng(3)
+    e = rng.normal(0.0, 3.0, (40, 30))
+    e[5, 7] = 10.0 * 1.5
+    r = 2.25
+    W = -0.5 * (e * e) / r
+    top = student_t_exponent(W, 4.0)
+    ref = student_t_loglik(e * e, r, 4.0)
+    assert top == pytest.approx(ref.max(), rel=1e-14, abs=1e-14)
+    np.testing.assert_allclose(W, ref - ref.max(), rtol=1e-13, atol=1e-13)
+    assert W.max() == 0.0
 
 
 def _z(model, x, depth_offset=0.0):

@@ -12,6 +12,12 @@ this module was imported writes it, and its parent reads what the child was doin
 Layout: ``t`` (float64, the FMU's time), ``start`` (float64, ``time.monotonic()`` when the call
 began), the FMU's index and the call's index (int32; -1: no call); then the FMU names, 64 bytes
 each (UTF-8, NUL-padded; longer names are cut).
+
+The record is on the hot path (a few calls per FMU and step): :func:`begin` and :func:`end`
+write through typed views of the page, one item at a time, the FMU's index last (a reader that
+sees it sees the call's other fields: the watchdog thread reads between two bytecodes, never
+inside one), and :func:`end` clears only the FMU's index. Measured in
+``benchmarks/bench_master.py --record`` (docs/benchmarks.md).
 """
 
 from __future__ import annotations
@@ -25,13 +31,14 @@ CALLS = ("instantiate", "enter initialization", "exit initialization", "set inpu
          "get outputs", "doStep", "event update", "reset", "terminate", "free instance",
          "load library")
 _HEAD = struct.Struct("=ddii")
-_INDEX = struct.Struct("=i")
 _NAME = 64
 _MAX_FMUS = 60
 _BUF = mmap.mmap(-1, _HEAD.size + 8 + _NAME * _MAX_FMUS)
 _HEAD.pack_into(_BUF, 0, 0.0, 0.0, -1, -1)
+_TIMES = memoryview(_BUF)[0:16].cast("d")  # t, start
+_IDS = memoryview(_BUF)[16:24].cast("i")  # fmu, call
 _names: dict[str, int] = {}
-_depth = [0]
+_depth = 0
 _clock = time.monotonic
 
 
@@ -49,17 +56,22 @@ def fmu_index(name: str) -> int:
 
 def begin(fmu: int, call: int, t: float) -> None:
     """The FMU ``fmu`` (:func:`fmu_index`) enters the call ``CALLS[call]`` at time ``t``."""
-    _depth[0] += 1
-    if _depth[0] == 1:
-        _HEAD.pack_into(_BUF, 0, t, _clock(), fmu, call)
+    global _depth
+    _depth += 1
+    if _depth == 1:
+        _TIMES[0] = t
+        _TIMES[1] = _clock()
+        _IDS[1] = call
+        _IDS[0] = fmu  # last: the call is in progress from here
 
 
 def end() -> None:
     """The call of the last :func:`begin` returned (or raised)."""
-    _depth[0] -= 1
-    if _depth[0] <= 0:
-        _depth[0] = 0
-        _INDEX.pack_into(_BUF, 16, -1)
+    global _depth
+    _depth -= 1
+    if _depth <= 0:
+        _depth = 0
+        _IDS[0] = -1
 
 
 def current() -> tuple[str, str, float, float] | None:
@@ -75,5 +87,6 @@ def current() -> tuple[str, str, float, float] | None:
 
 def clear() -> None:
     """Forget the call in progress (a new run, or a forked child's start)."""
-    _depth[0] = 0
-    _INDEX.pack_into(_BUF, 16, -1)
+    global _depth
+    _depth = 0
+    _IDS[0] = -1

@@ -109,8 +109,10 @@ class Master(SystemChecks):
         self.terminated: Termination | None = None
         self._initialized = False
         self._stopped_inside = False  # an FMU stopped the run between two grid times
-        #: the FMU call in progress: (fmu, call, t, time.monotonic() at its start), or None
-        #: (read by the run-wide watchdog, uwcosim.core.runguard)
+        #: the FMU work in progress that spans several FMU calls (instantiation, an
+        #: initialization or step loop, a coupled ME step): (fmu, what, t, time.monotonic() at
+        #: its start), or None; read by the run-wide watchdog (uwcosim.core.runguard) before
+        #: the adapters' record of the single call (uwcosim.core.fmucall)
         self.busy: tuple[str, str, float, float] | None = None
         self.adapters: dict[str, FMUAdapter] = {}
         #: the unzipped FMU archives, deleted by close() (or at process exit)
@@ -566,11 +568,8 @@ class Master(SystemChecks):
             # the step is the difference of two grid times (as fmpy's loop does), so the FMU
             # lands on t_{k+1} without accumulating rounding
             t_start = self.t0 + (k + 1 - p) * self.h
-            self.busy = (ad.name, "doStep", t_start, time.monotonic())
-            try:
-                t_reached = ad.do_step(t_start, t_next - t_start, node.inputs, node.input_fn)
-            finally:
-                self.busy = None
+            # timed by the watchdog through the adapter's record (uwcosim.core.fmucall)
+            t_reached = ad.do_step(t_start, t_next - t_start, node.inputs, node.input_fn)
             stop = ad.terminated
             if stop is not None:
                 t_reached = stop[0]
@@ -661,11 +660,7 @@ class Master(SystemChecks):
                 reached[id(node)] = (t_reached, id(node) in fresh)
         for node in unit.single:
             ad = node.adapter
-            self.busy = (ad.name, "doStep", t_start, time.monotonic())
-            try:
-                t_reached = ad.do_step(t_start, t_next - t_start, node.inputs, node.input_fn)
-            finally:
-                self.busy = None
+            t_reached = ad.do_step(t_start, t_next - t_start, node.inputs, node.input_fn)
             stop = ad.terminated
             reached[id(node)] = (stop[0] if stop is not None else (
                 t_next if t_reached is None else t_reached), False)

@@ -10,6 +10,9 @@ spectral basis or a grid, and run a Kalman filter for the others.
   (``KalmanBlock``, ``ModelStep``);
 - ``likelihood``: the likelihood of the gridded measurement rows on a tensor grid, the
   separable terrain spline (``TerrainGrid``) and its compiled form (``terrain_depth``);
+- ``estimator``: the frame of both filters (``GridFilter``: the partition, the Kalman block and
+  the likelihood built once, ``predict`` and ``update`` around the filter's own density and
+  steps);
 - ``moments``: mean and covariance of a density on a tensor grid (numpy and compiled forms);
 - ``small_linalg``: compiled loops for the small matrices of the steps.
 """

@@ -8,6 +8,6 @@
 - the compiled forms (two gridded states, Numba) with their kernels: ``prediction_kernels``,
   ``bayes_kernels``.
 
-The state partition, the conditional Kalman block and the grid likelihood are shared with
-PFM-PSI in :mod:`uwcosim.filters.grid`.
+The state partition, the conditional Kalman block, the grid likelihood and the filter's frame
+(``GridFilter``: ``predict``, ``update``) are shared with PFM-PSI in :mod:`uwcosim.filters.grid`.
 """

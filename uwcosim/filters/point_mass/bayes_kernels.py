@@ -2,7 +2,9 @@
 row: the TAN model): :class:`CompiledBayesUpdate`.
 
 :func:`terrain_exponent` (the terrain row's log-likelihood on the grid, from the map's
-:class:`~uwcosim.filters.grid.likelihood.TerrainMap`), then, after numpy's ``exp``,
+:class:`~uwcosim.filters.grid.likelihood.TerrainMap`; Gaussian, made Student-t by
+:func:`~uwcosim.filters.robust.student_t_exponent` with ``student_t_nu``), then, after numpy's
+``exp``,
 :func:`grid_product_moments` (the normalized product and its moments); without a grid row the
 moments alone (:func:`~uwcosim.filters.grid.moments.moments2_ordered`). The same quantities as
 :class:`~uwcosim.filters.point_mass.bayes.BayesUpdate` to round-off
@@ -21,18 +23,23 @@ from uwcosim.filters.grid.likelihood import terrain_depth
 from uwcosim.filters.grid.moments import moments2, moments2_marginals, moments2_ordered
 from uwcosim.filters.point_mass.bayes import BayesUpdate
 from uwcosim.filters.point_mass.grid import GridDensity, scale_values
+from uwcosim.filters.robust import student_t_exponent
 
 
 @jit_fast
-def terrain_exponent(xs, ys, terrain, z, var):
+def terrain_exponent(xs, ys, terrain, z, var, shift):
     """``ll - max(ll)`` of the terrain row on the grid ``xs x ys``, ``ll = -(h - z)^2 / (2
-    var)`` with ``h`` the depth on the map ``terrain``, and ``max(ll)``."""
+    var)`` with ``h`` the depth on the map ``terrain``, and ``max(ll)``; without ``shift``,
+    ``ll`` itself and 0 (the Student-t likelihood's input,
+    :func:`~uwcosim.filters.robust.student_t_exponent`)."""
     h = terrain_depth(xs, ys, terrain)
     c = -0.5 / var  # one division, not one per point (round-off: 1 ulp of the exponent)
     for i in range(h.shape[0]):
         for j in range(h.shape[1]):
             e = h[i, j] - z
             h[i, j] = (e * e) * c
+    if not shift:
+        return h, 0.0
     tmax = max2(h)
     h -= tmax
     return h, tmax
@@ -84,7 +91,11 @@ class CompiledBayesUpdate(BayesUpdate):
             return
         r = rows_g[0]
         ax = density.axes
-        E, llmax = terrain_exponent(ax[0], ax[1], self._maps[r], float(z[r]), self._var[r])
+        nu = self.likelihood.nu
+        E, llmax = terrain_exponent(ax[0], ax[1], self._maps[r], float(z[r]), self._var[r],
+                                    nu is None)
+        if nu is not None:  # the Student-t likelihood (filters.robust)
+            llmax = student_t_exponent(E, nu)
         np.exp(E, out=E)
         post, Z, density.mean, density.cov = grid_product_moments(density.values, E,
                                                                   density.cell, ax[0], ax[1])

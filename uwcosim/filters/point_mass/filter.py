@@ -6,7 +6,9 @@ the TAN model, whose velocities are handled by the conditional Kalman filter of
 spanning ``mean -+ span * sigma``, chosen anew at every prediction from the predicted mean and
 covariance (:mod:`~uwcosim.filters.point_mass.grid`). The prediction carries the density to
 the new grid (:mod:`~uwcosim.filters.point_mass.prediction`), the update multiplies it by the
-likelihood on the grid (:mod:`~uwcosim.filters.point_mass.bayes`).
+likelihood on the grid (:mod:`~uwcosim.filters.point_mass.bayes`); the frame of the steps
+(partition, Kalman block, ``predict``, ``update``) is
+:class:`~uwcosim.filters.grid.estimator.GridFilter`, shared with ``pfm_psi``.
 
 Each step has a numpy form (any number of gridded states) and a compiled form (two gridded
 states; Numba, :mod:`uwcosim.core.jit`), chosen once when the filter is built
@@ -16,19 +18,13 @@ states; Numba, :mod:`uwcosim.core.jit`), chosen once when the filter is built
 
 from __future__ import annotations
 
-from typing import ClassVar
-
 import numpy as np
 from pydantic import Field, StrictBool, StrictFloat, StrictInt, StrictStr
 from scipy import ndimage
 
-from uwcosim.core.errors import FilterDivergence
-from uwcosim.core.jit import ENABLED
 from uwcosim.core.memory import memory_problem
-from uwcosim.filters.base import Estimator, register
-from uwcosim.filters.grid.conditional import CompiledConditionalKalman, ConditionalKalman
-from uwcosim.filters.grid.likelihood import GridLikelihood
-from uwcosim.filters.grid.partition import Partition, symbolic
+from uwcosim.filters.base import register
+from uwcosim.filters.grid.estimator import GridFilter
 from uwcosim.filters.point_mass.bayes import BayesUpdate
 from uwcosim.filters.point_mass.bayes_kernels import CompiledBayesUpdate
 from uwcosim.filters.point_mass.grid import GridDensity
@@ -39,7 +35,7 @@ from uwcosim.filters.settings import MEASUREMENTS, STATES, FilterSettings, Measu
 
 
 @register("point_mass")
-class PointMassFilter(Estimator):
+class PointMassFilter(GridFilter):
     """Grid (point-mass) Bayes filter with a grid re-centred on the support every step."""
 
     class Settings(FilterSettings):
@@ -53,23 +49,12 @@ class PointMassFilter(Estimator):
                                      "states in its long-run form")
         student_t_nu: StudentTNu = student_t_field()  # filters.robust
 
-    #: False: the numpy forms of the steps even where the compiled ones apply (the reference
-    #: they are tested against)
-    use_kernels: ClassVar[bool] = True
+    size_key = "n_points"
 
     def __init__(self, model, x0, P0, **settings) -> None:
-        model = symbolic(model)
-        super().__init__(model, x0, P0, **settings)
+        super().__init__(model, x0, P0, **settings)  # the partition, Kalman block, likelihood
         s = self.settings
-        kernels = self.use_kernels and ENABLED
-        self.part = Partition(model, s.states, s.measurements, compiled=kernels)
-        p = self.part.p
-        n = len(p)
-        #: the steps run their compiled forms (two gridded states)
-        self.fast = bool(kernels and n == 2 and s.student_t_nu is None)
-        kalman = CompiledConditionalKalman if self.fast else ConditionalKalman
-        self.kalman = kalman(model, self.part, self.x, self.P, s.long_run)
-        self.likelihood = GridLikelihood(model, self.part, s.student_t_nu)
+        n = len(self.part.p)
         n_points = [int(v) for v in np.broadcast_to(np.asarray(s.n_points), (n,))]
         if min(n_points) < 5:
             raise ValueError("n_points must be >= 5")
@@ -77,26 +62,17 @@ class PointMassFilter(Estimator):
         why = memory_problem(need, f"n_points {n_points}", "use fewer points")
         if why:  # the grid, its mesh and work arrays (uwcosim.core.memory)
             raise ValueError(why)
-        self._keys = [(f"interval_lo_{m}", f"interval_hi_{m}") for m in self.part.names]
-        mean, cov = self.x[p], self.P[np.ix_(p, p)]
-        if np.any(np.diag(cov) <= 0):
-            raise ValueError("P0 must have a positive variance for every gridded state")
+        mean, cov = self.gridded_prior()
         #: the density of the gridded states on its grid, and its moments
         self.density = GridDensity(self.kind, s.span, n_points, mean, cov)
-        self._after_update = False
         if self.fast:
             self.prediction = CompiledPrediction(self.part, self.kalman, self.density)
-            self.bayes = CompiledBayesUpdate(self.likelihood, self.kalman, model.R)
+            self.bayes = CompiledBayesUpdate(self.likelihood, self.kalman, self.model.R)
         else:
             self.prediction = Prediction(self.part, self.kalman)
             self.bayes = BayesUpdate(self.likelihood, self.kalman)
-        # the prediction step the model needs, chosen once
-        self._predict = (self.prediction.translate if self.part.drift_constant
-                         else self.prediction.chapman_kolmogorov)
-        x, P, finite = self.kalman.assemble(mean, cov)
-        if not finite:
-            raise FilterDivergence(f"{self.kind}: non-finite estimate")
-        self.x, self.P = x, P
+        self.begin(self.prediction.translate if self.part.drift_constant
+                   else self.prediction.chapman_kolmogorov, mean, cov)
 
     # ------------------------------------------------------------------------------------------
     @property
@@ -109,36 +85,12 @@ class PointMassFilter(Estimator):
         """The grid's axes."""
         return self.density.axes
 
-    def predict(self, u, dt: float) -> None:
-        self.diagnostics = {}
-        self._after_update = False
-        u = np.asarray(u, dtype=float).reshape(-1)
-        x, P, finite = self._predict(self.density, self.x, u, dt, self.diagnostics)
-        if not finite:
-            raise FilterDivergence(f"{self.kind}: non-finite estimate")
-        self.x, self.P = x, P
-
-    def update(self, z, mask=None) -> None:
-        if self._after_update:  # fresh diagnostics, unless a prediction just wrote them
-            self.diagnostics = {}
-        self._after_update = True
-        z, rows_k, rows_g = self.part.split_rows(z, mask)
-        x, P, finite = self.bayes.update(self.density, self.x, z, rows_k, rows_g,
-                                         self.diagnostics)
-        if not finite:
-            raise FilterDivergence(f"{self.kind}: non-finite estimate")
-        self.x, self.P = x, P
-        d = self.diagnostics
-        d["n_points"] = float(self.density.values.size)
-        for (klo, khi), a in zip(self._keys, self.density.axes, strict=True):
-            d[klo] = a.item(0)
-            d[khi] = a.item(-1)
+    def representation(self) -> tuple[float, list[float], list[float]]:
+        axes = self.density.axes
+        return (float(self.density.values.size), [a.item(0) for a in axes],
+                [a.item(-1) for a in axes])
 
     # ------------------------------------------------------------------------------------------
-    @property
-    def gridded_states(self) -> list[str]:
-        return self.part.names
-
     def density_grid(self, axes=None, n: int | None = None):
         """Posterior density on a tensor grid: ``(axes, values)`` (default: the filter's grid).
 

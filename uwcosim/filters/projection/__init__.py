@@ -13,6 +13,7 @@
   Gaussian decay), ``prediction_kernels`` (the fused prediction), ``bayes_kernels`` (the
   product, its moments and the fused updates).
 
-The state partition, the conditional Kalman block of the velocities and the grid likelihood
-are shared with the point mass in :mod:`uwcosim.filters.grid`.
+The state partition, the conditional Kalman block of the velocities, the grid likelihood and
+the filter's frame (``GridFilter``: ``predict``, ``update``) are shared with the point mass in
+:mod:`uwcosim.filters.grid`.
 """

@@ -14,6 +14,8 @@ model of seed 000): :class:`CompiledBayesUpdate`.
   posterior mass, another row) returns having written nothing, and the numpy form
   :class:`~uwcosim.filters.projection.bayes.BayesUpdate` runs it.
 
+With ``student_t_nu`` the Gaussian exponent of :func:`bayes_terms` is made Student-t by
+:func:`~uwcosim.filters.robust.student_t_exponent` (numpy), the rest is the same.
 The same quantities as the numpy form to round-off (``tests/test_projection_kernels.py``).
 Bundles (:mod:`uwcosim.core.jit`): a :class:`~uwcosim.filters.projection.series_kernels.Series`,
 the :class:`~uwcosim.filters.projection.series_kernels.Tables`, the map's
@@ -56,6 +58,7 @@ from uwcosim.filters.projection.series_kernels import (
     to_grid2,
     to_grid2_into,
 )
+from uwcosim.filters.robust import student_t_exponent
 
 
 class Grids(NamedTuple):
@@ -79,7 +82,7 @@ class UpdateRule(NamedTuple):
 
 
 @jit_fast
-def bayes_terms(series, tables, terrain, z, var, inflation, grids):
+def bayes_terms(series, tables, terrain, z, var, inflation, grids, shift):
     """Prior values, terrain log-likelihood terms and the prior's negative mass of the
     :class:`~uwcosim.filters.projection.series_kernels.Series` ``series`` on its box (``M``
     points per dimension, the :class:`~uwcosim.filters.projection.series_kernels.Tables`
@@ -99,7 +102,9 @@ def bayes_terms(series, tables, terrain, z, var, inflation, grids):
     Both in single precision (twice as fast as double), refined by two Newton steps to
     ``1 / sqrt(V)`` within 2 ulp (not always correctly rounded; IEEE operations in a fixed
     order, so deterministic) when all ``V`` lie in ``[1e-30, 1e30]`` (else in double
-    precision): :func:`_inflated_terms`.
+    precision): :func:`_inflated_terms`. Without ``shift``, ``W`` is left unshifted
+    (``W = -(S (h - z))^2 / 2``, the Student-t likelihood's input:
+    :func:`~uwcosim.filters.robust.student_t_exponent` shifts it).
     """
     m, lo, length = series
     values, W, V = grids
@@ -125,9 +130,10 @@ def bayes_terms(series, tables, terrain, z, var, inflation, grids):
                 W[i, j] = -0.5 * (e * e)
         V[:] = s
         tmax = max2(W)
-    for i in range(M):
-        for j in range(M):
-            W[i, j] -= tmax
+    if shift:
+        for i in range(M):
+            for j in range(M):
+                W[i, j] -= tmax
     return -neg * cell, tmax, vmin
 
 
@@ -446,9 +452,12 @@ class CompiledBayesUpdate(BayesUpdate):
             terrain, var, thr = targs
             grids = self._grids  # filled by bayes_terms, consumed by bayes_step
             inflation = self.settings.resolution_inflation
+            nu = self.likelihood.nu
             neg_prior, tmax, vmin = bayes_terms((density.m, basis.lo, basis.length),
                                                 self._tables, terrain, float(z[r]), var,
-                                                inflation, grids)
+                                                inflation, grids, nu is None)
+            if nu is not None:  # the Student-t likelihood (filters.robust)
+                tmax = student_t_exponent(grids[1], nu)
             np.exp(grids[1], out=grids[1])  # E = exp(W)
             shift = tmax - 0.5 * math.log(vmin) if inflation else tmax
             code, loglik, m, neg, x, P, finite, phi, nis = bayes_step(
@@ -511,11 +520,14 @@ class CompiledBayesUpdate(BayesUpdate):
         M = basis.M
         grids = tuple(np.empty((M, M)) for _ in range(3))  # a Grids
         inflation = self.settings.resolution_inflation
+        nu = self.likelihood.nu
         neg, tmax, vmin = bayes_terms((density.m, basis.lo, basis.length), self._tables,
                                       tuple(tg.map), float(z[r]), self._var[r], inflation,
-                                      grids)
+                                      grids, nu is None)
         if record:
             diag["neg_mass_prior"] = neg
+        if nu is not None:  # the Student-t likelihood (filters.robust)
+            tmax = student_t_exponent(grids[1], nu)
         np.exp(grids[1], out=grids[1])
         post, Z, mean, cov, status = bayes_posterior(grids, vmin, basis.lo, basis.length)
         if status == 1:

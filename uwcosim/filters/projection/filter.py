@@ -20,7 +20,9 @@ Kalman filter (:mod:`uwcosim.filters.grid.conditional`). One step:
 Each step has a numpy form (any number of gridded states, every setting) and a compiled form
 (two gridded states, ``positivity`` ``"auto"`` or ``"none"``, no spectral filter; Numba,
 :mod:`uwcosim.core.jit`), chosen once when the filter is built (:attr:`ProjectionFilter.fast`);
-they give the same results to round-off (``tests/test_projection_kernels.py``).
+they give the same results to round-off (``tests/test_projection_kernels.py``). The frame of the
+steps (partition, Kalman block, ``predict``, ``update``) is
+:class:`~uwcosim.filters.grid.estimator.GridFilter`, shared with the point mass.
 
 Deviations from the paper (docs/projection_filter.md):
 
@@ -38,18 +40,12 @@ Deviations from the paper (docs/projection_filter.md):
 
 from __future__ import annotations
 
-from typing import ClassVar
-
 import numpy as np
 from pydantic import Field, StrictBool, StrictFloat, StrictInt, StrictStr
 
-from uwcosim.core.errors import FilterDivergence
-from uwcosim.core.jit import ENABLED
 from uwcosim.core.memory import memory_problem
-from uwcosim.filters.base import Estimator, register
-from uwcosim.filters.grid.conditional import CompiledConditionalKalman, ConditionalKalman
-from uwcosim.filters.grid.likelihood import GridLikelihood
-from uwcosim.filters.grid.partition import Partition, symbolic
+from uwcosim.filters.base import register
+from uwcosim.filters.grid.estimator import GridFilter
 from uwcosim.filters.projection.bayes import BayesUpdate, Positivity
 from uwcosim.filters.projection.bayes_kernels import CompiledBayesUpdate
 from uwcosim.filters.projection.prediction import Prediction
@@ -69,7 +65,7 @@ from uwcosim.filters.settings import MEASUREMENTS, STATES, FilterSettings, Measu
 
 
 @register("pfm_psi")
-class ProjectionFilter(Estimator):
+class ProjectionFilter(GridFilter):
     """PFM-PSI projection filter (complex-exponential Galerkin projection of the FPE)."""
 
     class Settings(FilterSettings):
@@ -100,24 +96,16 @@ class ProjectionFilter(Estimator):
                                   "standard deviations (0 = off)")
         student_t_nu: StudentTNu = student_t_field()  # filters.robust
 
-    #: False: the numpy forms of the steps even where the compiled ones apply (the reference
-    #: they are tested against)
-    use_kernels: ClassVar[bool] = True
+    size_key = "n_basis"
+
+    @classmethod
+    def compiles(cls, settings) -> bool:
+        return settings.positivity in ("auto", "none") and settings.spectral_filter == 0
 
     def __init__(self, model, x0, P0, **settings) -> None:
-        model = symbolic(model)
-        super().__init__(model, x0, P0, **settings)
+        super().__init__(model, x0, P0, **settings)  # the partition, Kalman block, likelihood
         s = self.settings
-        kernels = self.use_kernels and ENABLED
-        self.part = Partition(model, s.states, s.measurements, compiled=kernels)
         p = self.part.p
-        #: the steps run their compiled forms (two gridded states, the settings they cover)
-        self.fast = bool(kernels and len(p) == 2 and s.positivity in ("auto", "none")
-                         and s.spectral_filter == 0 and s.student_t_nu is None)
-        kalman = CompiledConditionalKalman if self.fast else ConditionalKalman
-        self.kalman = kalman(model, self.part, self.x, self.P, s.long_run)
-        self.likelihood = GridLikelihood(model, self.part, s.student_t_nu)
-        self._keys = [(f"interval_lo_{n}", f"interval_hi_{n}") for n in self.part.names]
         M = fft_size(s.grid_factor * (2 * s.K + 1))
         if not self.part.drift_constant:
             M = max(M, fft_size(4 * s.K + 2))
@@ -128,32 +116,24 @@ class ProjectionFilter(Estimator):
                              f"points)", "use a smaller K or grid_factor")
         if why:
             raise ValueError(why)
-        mean = self.x[p]
-        cov = self.P[np.ix_(p, p)]
-        if np.any(np.diag(cov) <= 0):
-            raise ValueError("P0 must have a positive variance for every gridded state")
+        mean, cov = self.gridded_prior()
         basis = SpectralBasis(*symmetric_interval(mean, cov, s.k_sigma, s.min_halfwidth), s.K,
                               M)
         #: the density of the gridded states: the series on its box, and its moments
         self.density = SeriesDensity(gaussian_coefficients(mean, cov, basis), basis, mean, cov)
         self._n_basis = float(basis.size)
-        self._after_update = False
         if self.fast:
             ops = CompiledSeriesOps(self.kind, s.k_sigma, s.min_halfwidth)
             self.prediction = CompiledPrediction(self.part, self.kalman, ops)
             self.bayes = CompiledBayesUpdate(s, self.part, self.likelihood, self.kalman, ops,
-                                             model.R, M)
+                                             self.model.R, M)
         else:
             ops = SeriesOps(self.kind, s.k_sigma, s.min_halfwidth)
             self.prediction = Prediction(self.part, self.kalman, ops)
-            self.bayes = BayesUpdate(s, self.part, self.likelihood, self.kalman, ops, model.R)
-        # the prediction step the model needs, chosen once
-        self._predict = (self.prediction.translate if self.part.drift_constant
-                         else self.prediction.galerkin)
-        x, P, finite = self.kalman.assemble(mean, cov)
-        if not finite:
-            raise FilterDivergence(f"{self.kind}: non-finite estimate")
-        self.x, self.P = x, P
+            self.bayes = BayesUpdate(s, self.part, self.likelihood, self.kalman, ops,
+                                     self.model.R)
+        self.begin(self.prediction.translate if self.part.drift_constant
+                   else self.prediction.galerkin, mean, cov)
 
     # ------------------------------------------------------------------------------------------
     @property
@@ -166,41 +146,12 @@ class ProjectionFilter(Estimator):
         """The series' basis: its box and quadrature grid."""
         return self.density.basis
 
-    def predict(self, u, dt: float) -> None:
-        self.diagnostics = {}
-        self._after_update = False
-        u = np.asarray(u, dtype=float).reshape(-1)
-        x, P, finite = self._predict(self.density, self.x, u, dt, self.diagnostics)
-        if not finite:
-            raise FilterDivergence(f"{self.kind}: non-finite estimate")
-        self.x, self.P = x, P
-
-    def update(self, z, mask=None) -> None:
-        if self._after_update:  # fresh diagnostics, unless a prediction just wrote them
-            self.diagnostics = {}
-        self._after_update = True
-        z, rows_k, rows_g = self.part.split_rows(z, mask)
-        x, P, finite = self.bayes.update(self.density, self.x, z, rows_k, rows_g,
-                                         self.diagnostics)
-        if not finite:
-            raise FilterDivergence(f"{self.kind}: non-finite estimate")
-        self.x, self.P = x, P
-        self._report()
-
-    def _report(self) -> None:
-        d = self.diagnostics
-        d["n_basis"] = self._n_basis
+    def representation(self) -> tuple[float, list[float], list[float]]:
         basis = self.density.basis
         lo, length = basis.lo.tolist(), basis.length.tolist()
-        for i, (klo, khi) in enumerate(self._keys):
-            d[klo] = lo[i]
-            d[khi] = lo[i] + length[i]  # basis.hi
+        return self._n_basis, lo, [a + b for a, b in zip(lo, length, strict=True)]  # basis.hi
 
     # ------------------------------------------------------------------------------------------
-    @property
-    def gridded_states(self) -> list[str]:
-        return self.part.names
-
     def density_grid(self, axes=None, n: int = 101, clip: bool = True):
         """Posterior density of the gridded states on a tensor grid.
 

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import io
+import json
 import os
 import resource
 import shutil
@@ -91,6 +92,32 @@ def kernels_loaded(cmd: list[str]) -> int:
     proc = subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=ROOT,
                           env={**ENV, "NUMBA_DEBUG_CACHE": "1"})
     return sum("data loaded from" in line for line in proc.stdout.splitlines())
+
+
+#: ``tan_terrain`` in one process with Numba imported first: Numba's import, the time in its
+#: compiler lock (every kernel loaded from the cache, the first load's set-up of its target
+#: context included; :func:`numba.core.event.install_timer`) and the whole run
+NUMBA_PROBE = """
+import json, sys, time
+t0 = time.perf_counter()
+import numba
+from numba.core import event
+t1 = time.perf_counter()
+from uwcosim.cli import main
+held = []
+with event.install_timer("numba:compiler_lock", held.append):
+    main(sys.argv[1:])
+t2 = time.perf_counter()
+print(json.dumps({"import": t1 - t0, "loads": sum(held), "total": t2 - t0}))
+"""
+
+
+def numba_share(cmd: list[str]) -> dict[str, float]:
+    """:data:`NUMBA_PROBE` of a run command: seconds of Numba's import, of its kernel loads,
+    and of the whole process after the interpreter's own start."""
+    proc = subprocess.run([sys.executable, "-c", NUMBA_PROBE, *cmd[3:]], check=True,
+                          capture_output=True, text=True, cwd=ROOT, env=ENV)
+    return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
 def source_tree(spec: str) -> Path:
@@ -171,6 +198,14 @@ def main() -> int:
                                for lib in ("numba", "matplotlib", "pandas")))
     n = kernels_loaded(run_cmd("tan_terrain", tmp / "kernels"))
     print(f"\ntan_terrain loads {n} compiled kernel specializations from Numba's cache")
+    shares = [numba_share(run_cmd("tan_terrain", tmp / "probe")) for _ in range(args.repeat)]
+    med = {k: statistics.median(sh[k] for sh in shares) for k in shares[0]}
+    print(f"\n## Numba's share of `run tan_terrain` in one process (median of {args.repeat}, "
+          f"s)\n\n| part | s |\n|---|---|\n| import numba | {med['import']:.2f} |\n"
+          f"| kernel loads from the cache (target set-up included) | {med['loads']:.2f} |\n"
+          f"| everything else after the interpreter's start | "
+          f"{med['total'] - med['import'] - med['loads']:.2f} |\n"
+          f"| whole run in process | {med['total']:.2f} |")
     shutil.rmtree(tmp, ignore_errors=True)
     return 0
 

@@ -112,6 +112,27 @@ print(json.dumps({"import": t1 - t0, "loads": sum(held), "total": t2 - t0}))
 """
 
 
+#: the map and the filters' model of ``tan_terrain`` built in a fresh process (CPU s after the
+#: imports): the start-up work that scales with the map (synthesis, spline coefficients,
+#: FastTerrain's table, the CasADi model), without Numba
+MODEL_PROBE = """
+import sys, time
+from uwcosim.run.factory import build_model, scenario_map
+from uwcosim.scenario.load import load_scenario
+loaded = load_scenario(sys.argv[1])
+t0 = time.process_time()
+model = build_model(loaded, scenario_map(loaded))
+print(time.process_time() - t0)
+"""
+
+
+def model_setup(env: dict, cwd: Path) -> float:
+    """:data:`MODEL_PROBE` of ``tan_terrain`` in the tree of ``env``/``cwd`` (CPU s)."""
+    proc = subprocess.run([sys.executable, "-c", MODEL_PROBE, "scenarios/tan_terrain.toml"],
+                          check=True, capture_output=True, text=True, cwd=cwd, env=env)
+    return float(proc.stdout.strip().splitlines()[-1])
+
+
 def numba_share(cmd: list[str]) -> dict[str, float]:
     """:data:`NUMBA_PROBE` of a run command: seconds of Numba's import, of its kernel loads,
     and of the whole process after the interpreter's own start."""
@@ -178,6 +199,14 @@ def main() -> int:
         walls, cpus = [w for w, _ in ts], [c for _, c in ts]
         print(f"| {label} | {statistics.median(walls):.2f} | {min(walls):.2f} | "
               f"{statistics.median(cpus):.2f} |")
+    trees = [("this tree", ENV, ROOT)] + ([(f"before ({args.compare})", old, src)]
+                                           if args.compare else [])
+    setup: dict[str, list[float]] = {label: [] for label, _, _ in trees}
+    for _ in range(args.repeat):
+        for label, env, cwd in trees:
+            setup[label].append(model_setup(env, cwd))
+    print("\nmap and model of tan_terrain built in a fresh process (median CPU s): " +
+          ", ".join(f"{label} {statistics.median(ts):.3f}" for label, ts in setup.items()))
     if args.compare:
         print("\nafter / before (median wall, median CPU):")
         for s in SCENARIOS:

@@ -87,11 +87,21 @@ def import_breakdown(cmd: list[str]) -> tuple[dict[str, float], set[str]]:
     return dict(by_top), seen
 
 
-def kernels_loaded(cmd: list[str]) -> int:
-    """How many compiled specializations the command loads from Numba's cache."""
+def kernels_loaded(cmd: list[str]) -> dict[str, list[int]]:
+    """The compiled specializations the command loads from Numba's cache: ``{kernel module:
+    [count, bytes]}`` (a cache file holds the kernel's object code and the bitcode of it and
+    of every kernel it calls, which Numba parses at the load)."""
     proc = subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=ROOT,
                           env={**ENV, "NUMBA_DEBUG_CACHE": "1"})
-    return sum("data loaded from" in line for line in proc.stdout.splitlines())
+    out: dict[str, list[int]] = defaultdict(lambda: [0, 0])
+    for line in proc.stdout.splitlines():
+        if "data loaded from" in line:
+            path = Path(line.split("'")[1])
+            module = ".".join([*path.parent.parent.relative_to(ROOT).parts,
+                               path.name.split(".")[0]])
+            out[module][0] += 1
+            out[module][1] += path.stat().st_size
+    return dict(out)
 
 
 #: ``tan_terrain`` in one process with Numba imported first: Numba's import, the time in its
@@ -225,8 +235,12 @@ def main() -> int:
             print(f"| {top} | {t:.3f} | {t / total:.0%} |")
         print("\n" + ", ".join(f"{lib} imported: {'yes' if lib in seen else 'no'}"
                                for lib in ("numba", "matplotlib", "pandas")))
-    n = kernels_loaded(run_cmd("tan_terrain", tmp / "kernels"))
-    print(f"\ntan_terrain loads {n} compiled kernel specializations from Numba's cache")
+    loads = kernels_loaded(run_cmd("tan_terrain", tmp / "kernels"))
+    n, size = (sum(v[i] for v in loads.values()) for i in (0, 1))
+    print(f"\n`run tan_terrain` loads {n} compiled kernel specializations ({size / 1e6:.1f} MB) "
+          f"from Numba's cache:\n\n| kernel module | loaded | MB |\n|---|---|---|")
+    for module, (k, b) in sorted(loads.items(), key=lambda kv: -kv[1][1]):
+        print(f"| {module} | {k} | {b / 1e6:.2f} |")
     shares = [numba_share(run_cmd("tan_terrain", tmp / "probe")) for _ in range(args.repeat)]
     med = {k: statistics.median(sh[k] for sh in shares) for k in shares[0]}
     print(f"\n## Numba's share of `run tan_terrain` in one process (median of {args.repeat}, "

@@ -97,8 +97,9 @@ class CasadiModel:
 
     def H(self, x) -> np.ndarray:
         """``dh/dx`` at ``x``. Its CasADi function is built at the first call, not with the
-        model: with a terrain map it differentiates the map's B-spline (0.05-0.1 s for the
-        default map), which a run whose filters use the closed-form model never needs."""
+        model: with a terrain map it differentiates the map's B-spline (most of the model's CasADi
+        set-up for the default map), which a run whose filters use the closed-form model
+        never needs."""
         if self._H is None:
             xs = ca.MX.sym("x", self.nx)
             self._H = ca.Function("H", [xs], [ca.jacobian(self.h_fn(xs), xs)])

@@ -9,6 +9,7 @@ import pytest
 
 from uwcosim.core import bspline
 from uwcosim.filters.grid.likelihood import TerrainGrid, terrain_depth
+from uwcosim.models import tan as tan_module
 from uwcosim.models.tan import FastTerrain
 from uwcosim.models.terrain import Bathymetry, synthetic_bathymetry
 
@@ -67,3 +68,21 @@ def test_table_and_tensor_forms_equal_the_definition(terrain):
                                rtol=0, atol=1e-12 * scale)
     out = terrain_depth(xs, ys, TerrainGrid(terrain).map)
     np.testing.assert_allclose(out, grid, rtol=0, atol=1e-12 * scale)
+
+
+def test_polynomial_table_has_the_bits_of_the_plain_stencil_sums():
+    """The table is built in place (start-up: no temporary per term); its bits are those of
+    the plain formula ``sum(M[a, i] * c[..., a:]) ...``, -0.0 turned into 0.0 by the sum's
+    ``0 +`` included (a map with zero and negative coefficients)."""
+    rng = np.random.default_rng(3)
+    depth = np.round(rng.standard_normal((23, 31)), 1) * 10.0
+    depth[rng.random(depth.shape) < 0.2] = 0.0
+    bathy = Bathymetry(0.0, 0.0, 10.0, 10.0, depth)
+    m, pad = bspline.MONOMIAL.T, tan_module.PAD
+    ny, nx = bathy.shape
+    c = bathy.coefficients[pad - 1 : pad + ny + 1, pad - 1 : pad + nx + 1]
+    ci = [sum(m[a, i] * c[:, a : a + nx - 1] for a in range(4)) for i in range(4)]
+    ref = np.stack([sum(m[b, j] * ci[i][b : b + ny - 1, :] for b in range(4))
+                    for i in range(4) for j in range(4)]).reshape(16, -1)
+    table = FastTerrain(bathy)._table
+    np.testing.assert_array_equal(table.view(np.int64), ref.view(np.int64))

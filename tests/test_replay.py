@@ -381,3 +381,26 @@ def test_missing_columns_lost_and_figures_without_a_reference(tmp_path, cli):
     code, _, err = cli("run", _replay(tmp_path, _cv_scenario("fixes.csv"), name="b.toml"),
                        "--out", tmp_path / "run2")
     assert code == 2 and "column 'y' is not in" in err[0]
+
+
+def test_timestamp_and_integer_columns_are_cast_by_their_methods(tmp_path):
+    """The time and value columns are cast by the columns' own methods (pyarrow then imports
+    its compute module at a replay only, not at every start): a timestamp column in ms with a
+    time zone gives seconds since the epoch, integers and booleans floats, a missing time
+    stamp the one-line error naming its row."""
+    from uwcosim.scenario import replay
+
+    ms = np.array([1_700_000_000_000, 1_700_000_000_500, 1_700_000_001_000])
+    table = pa.table({"time": pa.array(ms, pa.timestamp("ms", tz="UTC")),
+                      "n": pa.array([1, 2, 3], pa.int32()),
+                      "ok": pa.array([True, False, True])})
+    spec = replay.ReplaySpec(file="x.parquet", measurements={})
+    t = replay._time(table, spec, "s.toml", tmp_path / "x.parquet")
+    np.testing.assert_array_equal(t, ms / 1e3)
+    n = replay._floats(table, "n", "replay.measurements.n", "s.toml", tmp_path)
+    assert n.dtype == float and n.tolist() == [1.0, 2.0, 3.0]
+    ok = replay._floats(table, "ok", "k", "s.toml", tmp_path, allow_bool=True)
+    assert ok.tolist() == [1.0, 0.0, 1.0]
+    holed = pa.table({"time": pa.array([int(ms[0]), None, int(ms[2])], pa.timestamp("ms"))})
+    with pytest.raises(ScenarioError, match="no time at data row 2"):
+        replay._time(holed, spec, "s.toml", tmp_path / "x.parquet")

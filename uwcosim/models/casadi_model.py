@@ -86,8 +86,7 @@ class CasadiModel:
         #: step ``f_fn(x, u, dt)``, its Jacobians ``FG_fn`` (in the state and the noise),
         #: ``Ju_fn`` (in the controls, with control noise) and the output map ``h_fn(x)``
         self.h_fn = h
-        xs = ca.MX.sym("x", self.nx)
-        self._H = ca.Function("H", [xs], [ca.jacobian(h(xs), xs)])
+        self._H: ca.Function | None = None  # dh/dx, built at the first H (see H)
         self._f_batch, self._h_batch = PointwiseMap(self.f_fn), PointwiseMap(h)
 
     # single-point evaluations -------------------------------------------------------------
@@ -113,6 +112,13 @@ class CasadiModel:
         return np.asarray(self.h_fn(x)).reshape(self.nz)
 
     def H(self, x) -> np.ndarray:
+        """``dh/dx`` at ``x``. Its CasADi function is built at the first call, not with the
+        model: with a terrain map it differentiates the map's B-spline (most of the model's CasADi
+        set-up for the default map), which a run whose filters use the closed-form model
+        never needs."""
+        if self._H is None:
+            xs = ca.MX.sym("x", self.nx)
+            self._H = ca.Function("H", [xs], [ca.jacobian(self.h_fn(xs), xs)])
         return np.asarray(self._H(x)).reshape(self.nz, self.nx)
 
     # batch evaluations (rows are points) -----------------------------------------------------

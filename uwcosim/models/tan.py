@@ -76,6 +76,19 @@ def _kernels():
     return _KERNELS[0]
 
 
+def _stencil_sum(w, views, out: np.ndarray, tmp: np.ndarray) -> np.ndarray:
+    """``out = 0 + w[0] views[0] + w[1] views[1] + ...`` in that order, in place: the bits of
+    ``sum(w[k] * views[k] for k ...)`` (whose ``0 +`` turns -0.0 into 0.0) without a fresh
+    temporary per term (two whole-map arrays of 2 MB for each of the table's 80 terms at the
+    default map's size)."""
+    np.multiply(w[0], views[0], out=out)
+    out += 0.0
+    for k in range(1, len(views)):
+        np.multiply(w[k], views[k], out=tmp)
+        out += tmp
+    return out
+
+
 def _poly_table(bathy: Bathymetry) -> np.ndarray | None:
     """Per-cell polynomial coefficients ``[4*i + j, cell]`` of ``u^i v^j`` (cached per map).
 
@@ -91,11 +104,14 @@ def _poly_table(bathy: Bathymetry) -> np.ndarray | None:
         return None
     c = bathy.coefficients[PAD - 1 : PAD + ny + 1, PAD - 1 : PAD + nx + 1]  # nodes -1 .. n
     # contract the x stencil (a) then the y stencil (b): separable, 16 + 64 whole-grid passes
-    ci = [sum(_M[a, i] * c[:, a : a + nx - 1] for a in range(4)) for i in range(4)]
+    tmp = np.empty((ny + 2, nx - 1))
+    ci = [_stencil_sum(_M[:, i], [c[:, a : a + nx - 1] for a in range(4)],
+                       np.empty((ny + 2, nx - 1)), tmp) for i in range(4)]
     table = np.empty((4, 4, ny - 1, nx - 1))
     for i in range(4):
         for j in range(4):
-            table[i, j] = sum(_M[b, j] * ci[i][b : b + ny - 1, :] for b in range(4))
+            _stencil_sum(_M[:, j], [ci[i][b : b + ny - 1, :] for b in range(4)], table[i, j],
+                         tmp[: ny - 1])
     table = table.reshape(16, (ny - 1) * (nx - 1))
     _TABLES[key] = table
     weakref.finalize(bathy, _TABLES.pop, key, None)

@@ -50,8 +50,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.compute as pc
+import pyarrow as pa  # columns cast by their methods: pyarrow.compute loads at a replay only
 import pyarrow.csv as pcsv
 import pyarrow.parquet as pq
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictFloat, StrictInt, StrictStr
@@ -297,7 +296,7 @@ def _floats(table, name: str, key: str, where: str, path: Path, allow_bool: bool
     t = col.type
     if pa.types.is_boolean(t) and allow_bool or pa.types.is_integer(t) or \
             pa.types.is_floating(t) or pa.types.is_null(t) or pa.types.is_decimal(t):
-        arr = pc.cast(col, pa.float64()) if not pa.types.is_floating(t) or t != pa.float64() \
+        arr = col.cast(pa.float64()) if not pa.types.is_floating(t) or t != pa.float64() \
             else col
         return arr.to_numpy(zero_copy_only=False).astype(float, copy=False)
     raise ScenarioError(f"{where}: key '{key}': column {name!r} of {path} holds {t}, expected "
@@ -315,10 +314,10 @@ def _missing(name: str, names: list[str], key: str, where: str, path: Path) -> S
 def _time(table, spec: ReplaySpec, where: str, path: Path) -> np.ndarray:
     col = table.column(spec.time)
     if pa.types.is_timestamp(col.type):  # seconds since the Unix epoch
-        ns = pc.cast(pc.cast(col, pa.timestamp("ns", tz=col.type.tz)), pa.int64())
+        ns = col.cast(pa.timestamp("ns", tz=col.type.tz)).cast(pa.int64())
         t = ns.to_numpy(zero_copy_only=False).astype(float) / 1e9
         if col.null_count:
-            t[np.asarray(pc.is_null(col).to_numpy(zero_copy_only=False))] = np.nan
+            t[np.asarray(col.is_null().to_numpy(zero_copy_only=False))] = np.nan
     else:
         t = _floats(table, spec.time, "replay.time", where, path)
         f, _ = unit_conversion(canonical_unit(spec.time_unit), "s")

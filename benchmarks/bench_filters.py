@@ -31,7 +31,7 @@ terrain lookups, which the ``terrain=model`` rows of the libraries call too, the
 compiled (:mod:`uwcosim.models.terrain_kernels`, the same bits).
 
     .venv/bin/python benchmarks/bench_filters.py [--steps 2000] [--repeats 3] [--particles 1000]
-        [--pf-runs 24] [--pf-steps 1000] [--pf-ours-factor 5]
+        [--pf-runs 20] [--pf-steps 2000]
 
 FilterPy, Stone Soup and `particles` are benchmark-only (``pip install -e .[bench]``;
 ``particles`` declares ``numpy<2``: ``pip install --no-deps particles``; it needs ``joblib``,
@@ -124,10 +124,24 @@ def timed(zs, step):
     return times, xs
 
 
+def initial_cloud(x0, n_particles: int, seed: int = 1) -> np.ndarray:
+    """The particle filters' shared initial cloud, ``(4, N)`` draws of ``N(x0, P0)`` from a
+    stream of its own (``default_rng([seed, 1])``): every PF of a run starts from the same
+    particles (the prior's draw decides much of whether a 1000-particle filter locks onto the
+    terrain, so sharing it makes their comparison paired: ``pf_agreement.py``)."""
+    e = np.random.default_rng([seed, 1]).standard_normal((4, n_particles))
+    return np.asarray(x0, dtype=float)[:, None] + STD0[:, None] * e
+
+
 def ours_filter(name, model, x0, settings, seed: int = 1):
-    """Our estimator ``name`` from ``N(x0, P0)`` with ``settings``, its stream seeded ``seed``."""
-    return ESTIMATORS.get(name).from_settings(model, x0, np.diag(STD0**2), settings,
-                                              rng=np.random.default_rng(seed))
+    """Our estimator ``name`` from ``N(x0, P0)`` with ``settings``, its stream seeded ``seed``;
+    the particle filter starts from :func:`initial_cloud` (the same distribution as its own
+    draw)."""
+    est = ESTIMATORS.get(name).from_settings(model, x0, np.diag(STD0**2), settings,
+                                             rng=np.random.default_rng(seed))
+    if name == "pf":
+        est.particles = initial_cloud(x0, est.n, seed)  # before anything reads x or P
+    return est
 
 
 def ours(name, model, x0, settings, seed: int = 1):
@@ -240,8 +254,8 @@ def stonesoup_models(model, terrain):
 
 def stonesoup_pf(trans, meas, x0, n_particles, seed: int = 1):
     """Stone Soup's particle filter with the shared settings (:data:`PF_SETTINGS`): the prior
-    ``(state, predictor, updater)``. The initial cloud is drawn from ``N(x0, P0)`` with numpy's
-    global stream seeded ``seed`` (Stone Soup draws its noise and resampling from it too)."""
+    ``(state, predictor, updater)``, the prior's particles :func:`initial_cloud`. Stone Soup
+    draws its noise and resampling from numpy's global stream, seeded ``seed``."""
     from stonesoup.predictor.particle import ParticlePredictor
     from stonesoup.resampler.particle import ESSResampler, SystematicResampler
     from stonesoup.types.array import StateVectors
@@ -249,8 +263,7 @@ def stonesoup_pf(trans, meas, x0, n_particles, seed: int = 1):
     from stonesoup.updater.particle import ParticleUpdater
 
     np.random.seed(seed)
-    parts = np.random.multivariate_normal(x0, np.diag(STD0**2), n_particles).T
-    state = ParticleState(StateVectors(parts), log_weight=np.full(
+    state = ParticleState(StateVectors(initial_cloud(x0, n_particles, seed)), log_weight=np.full(
         n_particles, -np.log(n_particles)), timestamp=T0)
     resampler = ESSResampler(threshold=PF_SETTINGS["ess_threshold"] * n_particles,
                              resampler=SystematicResampler())
@@ -290,22 +303,22 @@ def stonesoup_job(kind, model, x0, terrain, n_particles, seed: int = 1):
     return job
 
 
-def particles_model(model, x0, terrain):
-    """``particles``' state-space model of the TAN problem (a class built for ``model``, ``x0``
-    and ``terrain``): ``X_t ~ N(f(X_{t-1}, u_t), Q)``, ``Y_t ~ N(h(X_t), R)`` with ``R``
-    diagonal (a product of normals). ``particles`` observes ``X_0``; ours observe after the
-    first step, so ``X_0`` here is that step's exact Gaussian ``N(f(x0), F P0 F' + Q)``."""
+def particles_model(model, cloud, terrain):
+    """``particles``' state-space model of the TAN problem (a class built for ``model``, the
+    initial ``cloud`` and ``terrain``): ``X_t ~ N(f(X_{t-1}, u_t), Q)``, ``Y_t ~ N(h(X_t), R)``
+    with ``R`` diagonal (a product of normals). ``particles`` observes ``X_0``; ours observe
+    after the first step, so ``X_0`` here is the first step from the cloud,
+    ``N(f(cloud_i, u_0), Q)`` (from ``N(x0, P0)``: ``N(f(x0), F P0 F' + Q)``)."""
     from particles import distributions as dists
     from particles import state_space_models as ssm
 
     sd = np.sqrt(np.diag(model.R))
     u0 = controls(0)
-    F0 = model.F(x0, u0, 1.0)
+    X0 = model.f_batch(np.ascontiguousarray(cloud.T), u0, 1.0)
 
     class TAN(ssm.StateSpaceModel):
         def PX0(self):
-            return dists.MvNormal(loc=model.f(x0, u0, 1.0),
-                                  cov=F0 @ np.diag(STD0**2) @ F0.T + model.Q(x0, u0, 1.0))
+            return dists.MvNormal(loc=X0, cov=model.Q(None, u0, 1.0))
 
         def PX(self, t, xp):
             u = controls(t)
@@ -321,11 +334,13 @@ def particles_model(model, x0, terrain):
 
 def particles_smc(model, x0, terrain, zs, n_particles, seed: int = 1):
     """``particles``' bootstrap filter on the measurements ``zs`` with the shared settings
-    (:data:`PF_SETTINGS`; numpy's global stream seeded ``seed``, which it draws from)."""
+    (:data:`PF_SETTINGS`), from :func:`initial_cloud`; numpy's global stream, which it draws
+    from, seeded ``seed``."""
     import particles
     from particles import state_space_models as ssm
 
-    fk = ssm.Bootstrap(ssm=particles_model(model, x0, terrain)(),
+    cloud = initial_cloud(x0, n_particles, seed)
+    fk = ssm.Bootstrap(ssm=particles_model(model, cloud, terrain)(),
                        data=[np.asarray(z) for z in zs])
     np.random.seed(seed)
     return particles.SMC(fk=fk, N=n_particles, resampling=PF_SETTINGS["resampling"],
@@ -349,11 +364,9 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--particles", type=int, default=1000)
-    ap.add_argument("--pf-runs", type=int, default=24,
+    ap.add_argument("--pf-runs", type=int, default=20,
                     help="truth seeds per library of the particle filters' RMSE check (0: none)")
-    ap.add_argument("--pf-steps", type=int, default=1000, help="steps of each of those runs")
-    ap.add_argument("--pf-ours-factor", type=int, default=5,
-                    help="our PF runs this many times as many seeds (it is the cheapest)")
+    ap.add_argument("--pf-steps", type=int, default=2000, help="steps of each of those runs")
     ap.add_argument("--no-numba", action="store_true",
                     help="no compiled rows; the model's terrain lookups in numpy")
     args = ap.parse_args()
@@ -413,7 +426,7 @@ def main() -> None:
     half = slice(args.steps // 2, None)
     rmse = {label: float(np.sqrt(np.mean(np.sum((r[3] - truth)[half, :2] ** 2, axis=1))))
             for label, r in results.items()}
-    print(f"\n{'filter':36s} {'median us':>10s} {'mean us':>9s} {'p95 us':>9s} "
+    print(f"\n{'filter':40s} {'median us':>10s} {'mean us':>9s} {'p95 us':>9s} "
           f"{'RMSE m':>8s}  RMSE vs ours (numpy)")
     for label, (med, mean, p95, _) in results.items():
         kind = "pf" if "pf" in label or "bootstrap" in label else label.split()[1][:3]
@@ -431,7 +444,7 @@ def main() -> None:
             check = f"{'equal' if rel <= tol else 'DIFFERS'} ({rel:.1e}, tol {tol:g})"
             if kind == "pf":
                 check += " to terrain=model"
-        print(f"{label:36s} {med:10.1f} {mean:9.1f} {p95:9.1f} {rmse[label]:8.2f}  {check}")
+        print(f"{label:40s} {med:10.1f} {mean:9.1f} {p95:9.1f} {rmse[label]:8.2f}  {check}")
 
     print("\ngoals")
     for label, goal in GOALS.items():
@@ -449,12 +462,11 @@ def main() -> None:
     if args.pf_runs > 0:  # the particle filters' RMSE over seeds (benchmarks/pf_agreement.py)
         import pf_agreement
 
-        print(f"\nparticle filters over seeds (pf_agreement.py): {args.pf_runs} truth seeds "
-              f"per library ({args.pf_runs * args.pf_ours_factor} for ours), {args.pf_steps} "
-              f"steps, terrain=model; RMSE = position, second half")
+        print(f"\nparticle filters over seeds (pf_agreement.py): {args.pf_runs} truth seeds, "
+              f"{args.pf_steps} steps, terrain=model; RMSE = position, second half")
         model_mc, sim = pf_agreement.problem(args.pf_steps)
         mc = pf_agreement.monte_carlo(model_mc, sim, pf_agreement.filters(model_mc, N),
-                                      args.pf_runs, args.pf_ours_factor)
+                                      args.pf_runs)
         print("\n".join(pf_agreement.report(mc)))
 
 

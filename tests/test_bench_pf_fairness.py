@@ -1,5 +1,6 @@
 """The particle-filter comparison of ``benchmarks/bench_filters.py`` is fair: our PF, Stone
-Soup's and `particles`' get the same prior ``N(x0, P0)``, process noise ``Q``, measurement
+Soup's and `particles`' start from the same cloud (drawn from ``N(x0, P0)``) and get the same
+process noise ``Q``, measurement
 likelihood (``R`` and the terrain function) and resampling rule (``PF_SETTINGS``). Checked on
 what each filter really does (one step of each from the same cloud), not only on what it was
 handed. The libraries are benchmark-only (``pip install -e .[bench]``): their tests skip when
@@ -74,7 +75,10 @@ def test_ours_gets_the_shared_settings_prior_and_noise(bench, problem):
     assert bench.PF_SETTINGS == {"ess_threshold": 0.5, "resampling": "systematic",
                                  "roughening": 0.0}
     assert s.student_t_nu is None  # the Gaussian likelihood, as the libraries'
-    assert_cov(est.particles, x0, np.diag(bench.STD0**2))  # the prior N(x0, P0)
+    cloud = bench.initial_cloud(x0, N)
+    assert_cov(cloud, x0, np.diag(bench.STD0**2))  # the prior N(x0, P0)
+    np.testing.assert_array_equal(est.particles, cloud)
+    np.testing.assert_allclose(est.x, cloud.mean(axis=1), rtol=1e-12)  # the estimate's too
     u = bench.controls(0)
     x = est.x.copy()
     est.particles = np.repeat(x[:, None], N, axis=1)
@@ -96,7 +100,8 @@ def test_stonesoup_gets_the_same_prior_noise_likelihood_and_resampling(bench, pr
     assert updater.resampler.threshold == 0.5 * N
     assert type(updater.resampler.resampler) is SystematicResampler
     assert updater.regulariser is None and updater.constraint_func is None  # no roughening
-    assert_cov(np.asarray(state.state_vector, dtype=float), x0, np.diag(bench.STD0**2))
+    np.testing.assert_array_equal(np.asarray(state.state_vector, dtype=float),
+                                  bench.initial_cloud(x0, N))  # the shared cloud
 
     u = bench.controls(0)
     x = np.asarray(cloud[:, 0])
@@ -120,11 +125,14 @@ def test_particles_gets_the_same_prior_noise_likelihood_and_resampling(bench, pr
     alg = bench.particles_smc(model, x0, bench.Terrain(model, "model"), zs, N)
     assert alg.ESSrmin == 0.5 and alg.resampling == "systematic"
     ssm = alg.fk.ssm
-    # X_0: our prior moved by the first step, N(f(x0), F P0 F' + Q)
+    # X_0: the shared cloud moved by the first step, f(cloud_i) + N(0, Q)
     u0 = bench.controls(0)
-    F = model.F(x0, u0, 1.0)
-    assert_cov(ssm.PX0().rvs(size=N).T, model.f(x0, u0, 1.0),
-               F @ np.diag(bench.STD0**2) @ F.T + model.Q(x0, u0, 1.0))
+    cloud = bench.initial_cloud(x0, N)
+    X0 = ssm.PX0().rvs(size=N).T
+    moved = np.stack([model.f(c, u0, 1.0) for c in cloud.T[:5]], axis=1)
+    np.testing.assert_allclose(ssm.PX0().loc[:5].T, moved, rtol=1e-12)
+    assert_cov(X0 - np.stack([model.f(c, u0, 1.0) for c in cloud.T], axis=1) + x0[:, None],
+               x0, model.Q(x0, u0, 1.0))
     u = bench.controls(1)
     x = np.asarray(cloud[:, 0])
     moved = ssm.PX(1, np.repeat(x[None, :], N, axis=0)).rvs(size=N).T

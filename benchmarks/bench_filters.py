@@ -21,9 +21,10 @@ same algorithm and terrain, 5 % with the spline terrain. The particle filters dr
 random streams, and one trajectory's RMSE of a 1000-particle filter is no evidence (it is
 heavy-tailed: locked or not): their spline rows are checked against the same library's
 ``terrain=model`` row (the same stream, 5 %), and the ``terrain=model`` rows against ours over
-``--pf-runs`` truth seeds (:mod:`pf_agreement`: mean RMSE within 3 Monte Carlo standard errors).
-Every particle filter gets ``PF_SETTINGS`` (systematic resampling below ESS = N/2, no
-roughening), the prior ``N(x0, P0)``, ``Q`` and ``R``: ``tests/test_bench_pf_fairness.py``.
+``--pf-runs`` truth seeds (:mod:`pf_agreement`: run by run, the mean difference within 3 Monte
+Carlo standard errors). Every particle filter gets ``PF_SETTINGS`` (systematic resampling below
+ESS = N/2, no roughening), one initial cloud drawn from ``N(x0, P0)`` (:func:`initial_cloud`),
+``Q`` and ``R``: ``tests/test_bench_pf_fairness.py`` checks it on one step of each.
 
 Each row's time is the best median of ``--repeats`` interleaved runs (with its mean and 95th
 percentile). Numba is loaded first unless ``--no-numba`` (then no compiled rows): the model's
@@ -62,6 +63,9 @@ START = np.array([2000.0, 18000.0, 0.5, 0.0])
 GOALS = {"ours ekf compiled": 5.0, "ours ukf compiled": 8.0}  # median us per step
 RATIO_GOAL = 0.15  # ours compiled / FilterPy, same algorithm, terrain=model
 T0 = datetime.datetime(2026, 1, 1)  # Stone Soup's time stamps: T0 + k s
+#: how to install each library of the comparison (benchmark-only)
+INSTALL = {"filterpy": "pip install -e .[bench]", "stonesoup": "pip install -e .[bench]",
+           "particles": "pip install -e .[bench] and pip install --no-deps particles"}
 #: what every particle filter of the comparison is given (Stone Soup's and ``particles``' own
 #: names for them in :func:`stonesoup_pf`, :func:`particles_smc`): resample systematically
 #: when the ESS falls below half the particles, no roughening
@@ -410,7 +414,7 @@ def main() -> None:
                     jobs[f"particles bootstrap-{N}, terrain={tname}"] = particles_job(
                         model, x0, t, N)
     for lib in missing:
-        print(f"{lib} not installed (pip install -e .[bench]): its rows are left out")
+        print(f"{lib} not installed ({INSTALL[lib]}): its rows are left out")
 
     for job in jobs.values():  # warm-up: caches, lazy imports, kernels, CPU clock
         job(zs[:100])

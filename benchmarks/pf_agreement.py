@@ -76,7 +76,7 @@ def filters(model, n_particles: int) -> dict:
         try:
             __import__(lib)
         except ImportError:
-            print(f"{lib} not installed (pip install -e .[bench]): its rows are left out")
+            print(f"{lib} not installed ({bf.INSTALL[lib]}): its rows are left out")
             continue
         out[label] = make
     return out

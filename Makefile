@@ -43,6 +43,7 @@ lint: $(STAMP)
 
 bench: fmus
 	$(PY) -m pip install --quiet -e '.[bench]'
+	$(PY) -m pip install --quiet --no-deps particles  # declares numpy<2; runs with numpy 2
 	$(PY) benchmarks/bench_master.py
 	$(PY) benchmarks/bench_filters.py
 	$(PY) benchmarks/bench_projection.py

@@ -44,6 +44,9 @@ def test_the_walk_through(tmp_path, cli, monkeypatch):
     assert "mission.toml: ok (checked: schema, replay file, map and filters)" in DOC.read_text()
     code, printed, err = cli("run", "mission.toml", "--out", out)
     assert code == 0, err
+    progress = "uwcosim: replaying 601 steps (602 rows of mission.csv, t = 0 .. 599.437 s)"
+    assert progress in err and progress.removeprefix("uwcosim: ") in " ".join(
+        DOC.read_text().split())
     assert "| ekf |" in printed and f"run directory: {out}" in printed
     for f in ("log.parquet", "simulation.json", "summary.json", "trajectory.png",
               "position_error.png", "position_error_norm.png", "report.md"):

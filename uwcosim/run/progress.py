@@ -7,6 +7,12 @@ pipe, a log file, CI): one line per stage on stderr: compiling kernels (first us
 simulating, evaluating, figures; no bar characters in a log. :meth:`RunProgress.compiling` is
 the hook of :data:`uwcosim.core.jit.on_compile`: the first kernel Numba compiles (a kernel not
 in its on-disk cache) makes it say what it is doing and how long that usually takes.
+
+A replay of recorded data (``[replay]``) has no step count in its scenario: the bar takes its
+total from the replay's view at the first row (``view.total``,
+:class:`uwcosim.run.replay.ReplayTotal`: the steps after the first row, the first and last
+time stamps, the file), shows the rows' own time stamps (they may be irregular) and ends, like a
+simulation, with the time the replay took and the evaluation stage.
 """
 
 from __future__ import annotations
@@ -25,9 +31,9 @@ COMPILE_NOTE = ("compiling the filters' Numba kernels (first use after an instal
 class RunProgress:
     """Observer of a run's steps (``on_step(k, view)``) that shows its progress on ``stream``.
 
-    ``steps``: the number of steps (None when unknown, a replay); ``step_s``, ``t0``: the time
-    grid; ``bar``: a tqdm bar (default: when ``stream`` is a terminal); ``enabled`` False shows
-    nothing (``-q``)."""
+    ``steps``: the number of steps (None when unknown: a replay's is read from the view at
+    ``k = 0``, module docstring); ``step_s``, ``t0``: the time grid; ``bar``: a tqdm bar
+    (default: when ``stream`` is a terminal); ``enabled`` False shows nothing (``-q``)."""
 
     def __init__(self, steps: int | None, step_s: float | None = None, t0: float = 0.0,
                  stream: TextIO | None = None, bar: bool | None = None,
@@ -43,6 +49,7 @@ class RunProgress:
         self._t_start: float | None = None
         self._compile_t: float | None = None
         self._compiled = 0
+        self._verb = "simulat"  # simulating / simulated; "replay" for a replay
         self.lines: list[str] = []  # what was said (the tests read it)
 
     # -- stages ---------------------------------------------------------------------------------
@@ -69,19 +76,28 @@ class RunProgress:
 
     def on_step(self, k: int, view) -> None:
         if k == 0:
-            self._begin()
+            self._begin(getattr(view, "total", None))
             return
         if self._bar is not None and (k & 15 == 0 or k == self.steps):
             self._bar.n = k
             if self.step_s is not None:
                 self._bar.set_postfix_str(f"t = {self.t0 + k * self.step_s:g} s", refresh=False)
+            elif self._verb == "replay":  # the row's own time stamp
+                self._bar.set_postfix_str(f"t = {view.t:g} s", refresh=False)
             self._bar.refresh() if k == self.steps else self._bar.update(0)
         if self.steps is not None and k == self.steps:
             self.end()
 
-    def _begin(self) -> None:
+    def _begin(self, total=None) -> None:
+        """The first row: ``total`` a replay's :class:`~uwcosim.run.replay.ReplayTotal`
+        (None for a simulation)."""
         self._t_start = time.perf_counter()
-        if self.steps is not None and self.step_s is not None:
+        if total is not None and self.steps is None:  # a replay: its total from the file
+            self.steps, self.step_s, self.t0 = int(total.steps), None, float(total.t_first)
+            self._verb = "replay"
+            what = (f"replaying {total.steps} steps ({total.steps + 1} rows of {total.file}, "
+                    f"t = {total.t_first:g} .. {total.t_last:g} s)")
+        elif self.steps is not None and self.step_s is not None:
             t1 = self.t0 + self.steps * self.step_s
             what = (f"simulating {self.steps} steps of {self.step_s:g} s "
                     f"(t = {self.t0:g} .. {t1:g} s)")
@@ -93,7 +109,7 @@ class RunProgress:
             self.lines.append(what)
             # smoothing 0: the rate and the time remaining are the run's average so far
             self._bar = tqdm(total=self.steps, unit="step", file=self.stream, smoothing=0,
-                             dynamic_ncols=True, desc="simulating", leave=False,
+                             dynamic_ncols=True, desc=f"{self._verb}ing", leave=False,
                              mininterval=0.2)
         else:
             self.stage(what)
@@ -107,8 +123,8 @@ class RunProgress:
         if self._bar is not None:
             self._bar.close()
             self._bar = None
-        done = f"simulated {self.steps} steps in {wall:.1f} s" if self.steps else \
-            f"simulated in {wall:.1f} s"
+        done = f"{self._verb}ed {self.steps} steps in {wall:.1f} s" if self.steps else \
+            f"{self._verb}ed in {wall:.1f} s"
         if self.steps and wall > 0:
             done += f" ({self.steps / wall:,.0f} steps/s)"
         if self._compile_t is not None:

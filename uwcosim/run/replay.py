@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import NamedTuple
 
 import numpy as np
 
@@ -40,8 +41,19 @@ class ReplaySensors:
         self.sensor_of = list(sensor_of)
 
 
+class ReplayTotal(NamedTuple):
+    """What a whole replay spans (a progress bar's total): its steps (the rows after the
+    first), the first and last time stamps, the file's name."""
+
+    steps: int
+    t_first: float
+    t_last: float
+    file: str
+
+
 class ReplayView(StepView):
-    """A master's view of a replay's current row; ``dt`` is the gap since the previous one."""
+    """A master's view of a replay's current row; ``dt`` is the gap since the previous one,
+    ``total`` what the whole replay spans."""
 
     __slots__ = ("_source",)
 
@@ -52,6 +64,11 @@ class ReplayView(StepView):
     @property
     def dt(self) -> float:
         return self._source.dt
+
+    @property
+    def total(self) -> ReplayTotal:
+        rec = self._source.recording
+        return ReplayTotal(rec.steps, float(rec.time[0]), float(rec.time[-1]), rec.path.name)
 
 
 class ReplaySource:

@@ -420,7 +420,8 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
             # field metadata "unit" (a replay's recording declares none)
             units = layout_units(layout, getattr(master, "signal_unit", lambda _: None), truth)
             logger = RunLogger(log_path, layout.columns, layout.flags, meta,
-                               spec.log.chunk_steps, dtypes, units)
+                               spec.log.chunk_steps, dtypes, units,
+                               pending=spec.run.filter_block)
             recorder = LogRecorder(
                 layout, logger, [slots[c] for c in signals],
                 [slots[c] for c in logger.exact_columns], master.exact,

@@ -1,4 +1,5 @@
-"""``uwcosim run`` in a child process, so that nothing an FMU does ends the run silently.
+"""``uwcosim run``, ``demo`` and the runs of ``campaign --workers 1`` in a child process, so
+that nothing an FMU does ends them silently.
 
 A call into an in-process FMU's library can end the whole process: ``exit(0)``, ``exit(n)``,
 ``abort()``, a segmentation fault, at library load, at initialization, in ``doStep`` or in a
@@ -11,9 +12,13 @@ which exit status it chose (:func:`done`). A child that ends without saying so w
 something else: the parent names the FMU call it was in (:mod:`uwcosim.core.fmucall`, in shared
 memory) and how it ended, and returns a :class:`Death` for the caller to finish the run
 directory (``uwcosim.run.aftermath``). No per-step cost: the FMUs still run in the process
-that steps them. The child ends with ``os._exit`` after what the interpreter's exit would do
-for a run (workers killed, scratch folders removed, logging and output flushed), not after its
-teardown of every module (slow with Numba loaded: most of the time a stop took).
+that steps them. :class:`Child` is that child and its messages (:func:`tell`, read as they
+arrive); :func:`supervised_map` runs a sequence of jobs in one (a campaign's runs), yields each
+result as it comes and, when the child dies in a job, that job's :class:`Death`, then goes on
+with the next job in a new child. The child ends with ``os._exit`` after what the
+interpreter's exit would do for a run (workers killed, scratch folders removed, logging and
+output flushed), not after its teardown of every module (slow with Numba loaded: most of the
+time a stop took).
 
 The child's temporary files (unzipped FMUs, extracted SSP members, its workers' files) go
 to a folder of the parent's (``TMPDIR``), removed when the child has ended, however it ended.

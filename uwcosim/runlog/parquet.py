@@ -70,12 +70,13 @@ class RunLogger:
     each column that has one, written as its field metadata ``unit``
     (:mod:`uwcosim.runlog.units`). ``pending``: how many rows may be recorded
     (:meth:`stage`) before the logger gets them (a filter block), for the size of the tail
-    file (:mod:`uwcosim.runlog.tail`).
+    file (:mod:`uwcosim.runlog.tail`); ``tail=False``: none (the benchmark of its cost).
     """
 
     def __init__(self, path: Path, columns: list[str], bool_columns: list[str],
                  metadata: dict, chunk: int = 1000, dtypes: dict | None = None,
-                 units: dict[str, str] | None = None, pending: int = 0) -> None:
+                 units: dict[str, str] | None = None, pending: int = 0,
+                 tail: bool = True) -> None:
         self.path = Path(path)
         self.columns = ["time", *columns]
         self.bool_columns = list(bool_columns)
@@ -106,8 +107,9 @@ class RunLogger:
                                ) from None
         self._tail = None
         try:  # best effort: a disk without room for it still gets the log
-            self._tail = Tail(tail_path(self.path), self.schema, len(self.columns),
-                              len(self.bool_columns), self.chunk + int(pending) + 1)
+            if tail:
+                self._tail = Tail(tail_path(self.path), self.schema, len(self.columns),
+                                  len(self.bool_columns), self.chunk + int(pending) + 1)
         except OSError:
             pass
 

@@ -78,12 +78,12 @@ class Tail:
     def put(self, k: int, values: np.ndarray, flags) -> None:
         """Row ``k``: ``values`` (``width``), then ``flags`` (the first ones; the rest 0)."""
         slot = self._a[k % self.capacity]
-        slot[0] = k
         slot[self._values] = values
         n = len(flags)
         slot[self._flags:self._flags + n] = flags
         if self._flags + n < slot.size:
             slot[self._flags + n:] = 0.0
+        slot[0] = k  # last: a slot kill -9 tore while it took another step is not taken
 
     def close(self) -> None:
         """Unmap and remove the file (the log is complete)."""

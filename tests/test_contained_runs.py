@@ -163,17 +163,20 @@ def test_a_killed_run_keeps_the_rows_up_to_the_kill(tmp_path, project_fmus, chil
     from uwcosim.runlog.tail import tail_path, tail_table
 
     tail = tail_path(out / "log.parquet")
-    while True:  # row 5 is in the tail: the FMU sleeps in the doStep from t=5
-        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
-        try:
-            rows = tail_table(tail, 0)[1]
-        except (OSError, ValueError):
-            rows = None
-        if rows is not None and rows.num_rows == 6:
-            break
-        time.sleep(0.05)
-    proc.kill()
-    proc.communicate(timeout=30)
+    try:
+        while True:  # row 5 is in the tail: the FMU sleeps in the doStep from t=5
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "no tail file with rows 0..5"
+            try:
+                rows = tail_table(tail, 0)[1]
+            except (OSError, ValueError):
+                rows = None
+            if rows is not None and rows.num_rows == 6:
+                break
+            time.sleep(0.05)
+    finally:
+        proc.kill()
+        proc.communicate(timeout=30)
     time.sleep(0.5)  # the run's child dies with it
     assert not (out / "log.parquet.journal").stat().st_size > 1000  # no row group in it
     assert read_log(out / "log.parquet")[0]["time"].tolist() == [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]

@@ -91,6 +91,30 @@ def files(tmp_path_factory, project_fmus) -> dict[str, Path]:
     # issue 24, item 19: modelDescription.xml problems in Python's words before
     remake("fmi1.fmu", lambda t: t.replace('fmiVersion="3.0"', 'fmiVersion="1.0"'))
     remake("noversion.fmu", lambda t: t.replace('fmiVersion="3.0"', ""))
+    # issue 24, item 19 (the leftovers): what fmpy reads with Python's words, e.g. "(6)" =
+    # KeyError 6, a <ModelStructure> entry naming a value reference no variable has
+    remake("dangling6.fmu", lambda t: t.replace('name="der(y)" valueReference="6"',
+                                                'name="der(y)" valueReference="60"'))
+    remake("novr.fmu", lambda t: t.replace('name="x" valueReference="1" ', 'name="x" '))
+    remake("baddeps.fmu", lambda t: re.sub(r'(<Output valueReference="1" dependencies=)"[^"]*"',
+                                           r'\1"a b"', t))
+    remake("novars.fmu", lambda t: re.sub(r"<ModelVariables>.*</ModelVariables>", "", t,
+                                          flags=re.S))
+    remake("noname.fmu", lambda t: t.replace('<Float64 name="psi" ', "<Float64 "))
+    remake("derivative.fmu", lambda t: t.replace('derivative="1"', 'derivative="99"'))
+    remake("noident.fmu", lambda t: t.replace('<CoSimulation modelIdentifier="AUVKinematics"',
+                                              "<CoSimulation"))
+    remake("causality.fmu", lambda t: t.replace('name="psi" valueReference="9" description='
+                                                '"Heading" causality="input"', 'name="psi" '
+                                                'valueReference="9" description="Heading" '
+                                                'causality="bogus"'))
+    with zipfile.ZipFile(project_fmus / "AUVKinematics_fmi2.fmu") as zin, \
+            zipfile.ZipFile(d / "fmi2as3.fmu", "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'fmiVersion="2.0"', b'fmiVersion="3.0"', 1)
+            zout.writestr(item, data)
     with zipfile.ZipFile(src) as zin, zipfile.ZipFile(d / "latin1md.fmu", "w") as zout:
         for item in zin.infolist():
             data = zin.read(item)
@@ -261,6 +285,29 @@ CASES = [
     ("fmu-xml-not-utf8", lambda f: FMU(f, "latin1md.fmu"), 3,
      "latin1md.fmu: invalid modelDescription.xml: not well-formed XML in its declared "
      "encoding"),
+    ("fmu-md-dangling-value-reference", lambda f: FMU(f, "dangling6.fmu"), 3,
+     "dangling6.fmu: invalid modelDescription.xml: line 56: <ContinuousStateDerivative ...>: "
+     "valueReference 6 names no variable (no variable has value reference 6)"),
+    ("fmu-md-no-value-reference", lambda f: FMU(f, "novr.fmu"), 3,
+     "novr.fmu: invalid modelDescription.xml: line 30: <Float64 ...>: variable 'x' has "
+     "valueReference=None, expected an unsigned 32-bit integer"),
+    ("fmu-md-dependencies-not-integers", lambda f: FMU(f, "baddeps.fmu"), 3,
+     "<Output ...>: dependencies='a' is not an integer"),
+    ("fmu-md-no-model-variables", lambda f: FMU(f, "novars.fmu"), 3,
+     "invalid modelDescription.xml: no <ModelVariables> element"),
+    ("fmu-md-variable-without-name", lambda f: FMU(f, "noname.fmu"), 3,
+     "invalid modelDescription.xml: line 38: <Float64 ...>: a variable without a name"),
+    ("fmu-md-dangling-derivative", lambda f: FMU(f, "derivative.fmu"), 3,
+     "line 34: <Float64 ...>: derivative 99 names no variable"),
+    ("fmu-md-no-model-identifier", lambda f: FMU(f, "noident.fmu"), 3,
+     "invalid modelDescription.xml: <CoSimulation> has no modelIdentifier (the name of its "
+     "binary, binaries/x86_64-linux/NAME.so)"),
+    ("fmu-md-schema", lambda f: FMU(f, "causality.fmu"), 3,
+     "invalid modelDescription.xml: line 38: Element 'Float64', attribute 'causality': "
+     "[facet 'enumeration'] The value 'bogus' is not an element of the set"),
+    ("fmu-md-fmi2-variables-as-fmi3", lambda f: FMU(f, "fmi2as3.fmu"), 3,
+     "invalid modelDescription.xml: line 29: <ScalarVariable ...>: a FMI 2.0 <ScalarVariable> "
+     "element in <ModelVariables> of an FMU with fmiVersion='3.0'"),
     # -- command-line arguments --
     ("run-no-scenario", lambda f: ["run"], 2, "required: scenario"),
     ("run-seed-not-int", lambda f: ["run", str(SCEN), "--seed", "x"], 2, "--seed"),

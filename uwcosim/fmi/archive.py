@@ -43,6 +43,7 @@ if TYPE_CHECKING:
 from uwcosim.core import scratch
 from uwcosim.core.errors import FMUError, ScenarioError
 from uwcosim.core.paths import is_project_fmu
+from uwcosim.fmi.description_errors import explain
 
 INTERFACE_NAMES = {"cs": "co-simulation", "me": "model exchange"}
 MIB = 1 << 20
@@ -174,8 +175,15 @@ def read_model(path: str | Path) -> ModelDescription:
     try:
         return read_model_description(str(path), validate=False)
     except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for bad XML
-        raise FMUError(f"{path}: invalid modelDescription.xml ({type(exc).__name__}: {exc})"
-                       ) from None
+        why = explain(_description_bytes(path), exc)  # in the file's terms, not Python's
+        raise FMUError(f"{path}: invalid modelDescription.xml: {why}") from None
+
+
+def _description_bytes(path: str | Path) -> bytes:
+    if Path(path).is_dir():  # an unzipped FMU folder
+        return (Path(path) / "modelDescription.xml").read_bytes()
+    with zipfile.ZipFile(path) as zf:
+        return zf.read("modelDescription.xml")
 
 
 def xml_problem(path: str | Path) -> str | None:
@@ -183,12 +191,7 @@ def xml_problem(path: str | Path) -> str | None:
     fmpy reads it (its messages: "int() argument must be ... not 'NoneType'" for
     ``fmiVersion="1.0"``, a temporary path that does not exist for a non-UTF-8 file)."""
     try:
-        if Path(path).is_dir():  # an unzipped FMU folder
-            data = (Path(path) / "modelDescription.xml").read_bytes()
-        else:
-            with zipfile.ZipFile(path) as zf:
-                data = zf.read("modelDescription.xml")
-        root = ET.fromstring(data)
+        root = ET.fromstring(_description_bytes(path))
     except ET.ParseError as exc:
         return (f"not well-formed XML in its declared encoding ({exc}; an XML file without "
                 f"an encoding declaration must be UTF-8)")
@@ -219,6 +222,11 @@ def binary_problems(path: str | Path, md: ModelDescription,
         kind = md.coSimulation if iface == "cs" else md.modelExchange
         if kind is None:
             continue
+        if not kind.modelIdentifier:  # the binary's name
+            tag = "CoSimulation" if iface == "cs" else "ModelExchange"
+            return [f"{path}: invalid modelDescription.xml: <{tag}> has no modelIdentifier "
+                    f"(the name of its binary, binaries/{plat}/NAME"
+                    f"{fmpy.sharedLibraryExtension})"]
         lib = f"binaries/{plat}/{kind.modelIdentifier}{fmpy.sharedLibraryExtension}"
         if lib not in names:
             found = sorted({n.split("/")[1] for n in names

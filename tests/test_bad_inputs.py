@@ -10,6 +10,8 @@ import json
 import os
 import re
 import signal
+import subprocess
+import sys
 import zipfile
 from pathlib import Path
 
@@ -285,6 +287,9 @@ CASES = [
     ("fmu-xml-not-utf8", lambda f: FMU(f, "latin1md.fmu"), 3,
      "latin1md.fmu: invalid modelDescription.xml: not well-formed XML in its declared "
      "encoding"),
+    ("estimation-initial-std-overflows",
+     lambda f: [*S("estimation.initial_std=[1e200, 1e200, 0.05, 0.05]"), *FAST], 2,
+     "key 'estimation.initial_std': 1e+200 squared is not a finite variance"),
     ("fmu-md-dangling-value-reference", lambda f: FMU(f, "dangling6.fmu"), 3,
      "dangling6.fmu: invalid modelDescription.xml: line 56: <ContinuousStateDerivative ...>: "
      "valueReference 6 names no variable (no variable has value reference 6)"),
@@ -810,3 +815,24 @@ def test_the_numpy_kernels_are_recorded_and_reproduced(tmp_path):
     from uwcosim.reports.reproduce import reproduce_command
 
     assert not reproduce_command({}, {"scenario_path": "s.toml"}).startswith("UWCOSIM")
+
+
+def test_numpy_warnings_are_one_line_each_and_recorded(tmp_path):
+    """Item 19: a zero measurement noise makes numpy warn in the particle filter (weights of
+    a zero variance); the run prints no raw ``RuntimeWarning`` (and no source line under it),
+    one line naming where, and ``summary.json`` counts it under ``warnings``."""
+    out = tmp_path / "run"
+    proc = subprocess.run(
+        [sys.executable, "-m", "uwcosim", "run", str(SCEN), "--out", str(out), "--no-figures",
+         "--set", "run.duration=10", "--set", "sensors.depth.sigma=[0.0]", "--set",
+         'estimators={pf={type="pf", n_particles=200}}'], cwd=ROOT, capture_output=True,
+        text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "RuntimeWarning" not in proc.stderr, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if "numerical warning" in ln]
+    assert len(lines) == 1 and "numerical warning at uwcosim/filters/particle.py:" in lines[0] \
+        and "divide by zero encountered in divide" in lines[0], proc.stderr
+    warned = json.loads((out / "summary.json").read_text())["warnings"]
+    assert [w["message"] for w in warned] == ["divide by zero encountered in divide"]
+    assert warned[0]["where"].startswith("uwcosim/filters/particle.py:")
+    assert warned[0]["count"] >= 1

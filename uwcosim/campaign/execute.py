@@ -154,6 +154,7 @@ def _worker_init(parent: int, tmp: str | None = None) -> None:
         os.environ["TMPDIR"] = tmp
 
     logging.getLogger("uwcosim.run.bank").addHandler(logging.NullHandler())
+    logging.getLogger("uwcosim.core.numwarn").addHandler(logging.NullHandler())  # in summary
 
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(s, signal.SIG_IGN)

@@ -48,6 +48,7 @@ import numpy as np
 
 from uwcosim.core.errors import OutputError, RunInterrupted, UwcosimError
 from uwcosim.core.jit import ENABLED as JIT_ENABLED
+from uwcosim.core.numwarn import NumericalWarnings
 from uwcosim.core.runguard import run_guard, signal_name
 from uwcosim.core.version import __version__
 from uwcosim.evaluation.summary import evaluate as evaluate_run
@@ -332,9 +333,13 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
             return message
         return f"{message} (log up to t={last_time():g} kept in {log_path})"
 
+    numerics = NumericalWarnings()  # numpy's RuntimeWarnings: one line each, recorded
+
     def finish(status: str, error: str) -> None:
         """``simulation.json`` and (with ``evaluate``) ``summary.json``."""
         record = simulation_record(master, bank, loaded, status, error)
+        if numerics.entries():
+            record["warnings"] = numerics.entries()
         write_json(out_dir / SIMULATION_FILE, record)
         if evaluate:
             try:
@@ -368,7 +373,7 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
             write_json(out_dir / SUMMARY_FILE, essentials)
         return message
 
-    with run_guard(spec.run.fmu_timeout_s) as guard:
+    with run_guard(spec.run.fmu_timeout_s) as guard, numerics:
         guard.master, guard.finalize = master, finalize
         try:
             truth: list[str] = []

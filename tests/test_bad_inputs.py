@@ -117,6 +117,13 @@ def files(tmp_path_factory, project_fmus) -> dict[str, Path]:
             if item.filename == "modelDescription.xml":
                 data = data.replace(b'fmiVersion="2.0"', b'fmiVersion="3.0"', 1)
             zout.writestr(item, data)
+    with zipfile.ZipFile(project_fmus / "AUVKinematics_fmi2.fmu") as zin, \
+            zipfile.ZipFile(d / "noguid2.fmu", "w") as zout:  # fmpy: None.encode() of the guid
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                data = re.sub(rb'\s+guid="[^"]*"', b"", data)
+            zout.writestr(item, data)
     with zipfile.ZipFile(src) as zin, zipfile.ZipFile(d / "latin1md.fmu", "w") as zout:
         for item in zin.infolist():
             data = zin.read(item)
@@ -290,6 +297,12 @@ CASES = [
     ("estimation-initial-std-overflows",
      lambda f: [*S("estimation.initial_std=[1e200, 1e200, 0.05, 0.05]"), *FAST], 2,
      "key 'estimation.initial_std': 1e+200 squared is not a finite variance"),
+    ("fmu-fmi2-no-guid", lambda f: FMU(f, "noguid2.fmu"), 3,
+     "noguid2.fmu: FMU 'vehicle' cannot be run: its modelDescription.xml has no guid (FMI 2.0 "
+     "requires one)"),
+    ("fmu-check-fmi2-no-guid", lambda f: ["fmu", "check", str(f["dir"] / "noguid2.fmu"),
+                                          "--role", "vehicle"], 3,
+     "FMU 'noguid2' cannot be run: its modelDescription.xml has no guid"),
     ("fmu-md-dangling-value-reference", lambda f: FMU(f, "dangling6.fmu"), 3,
      "dangling6.fmu: invalid modelDescription.xml: line 56: <ContinuousStateDerivative ...>: "
      "valueReference 6 names no variable (no variable has value reference 6)"),

@@ -26,7 +26,7 @@ _PYTHON_WORDS = (KeyError, TypeError, ValueError, AttributeError, IndexError)
 def explain(data: bytes, exc: Exception) -> str:
     """One line: why fmpy failed to read the model description ``data`` with ``exc``."""
     try:
-        from lxml import etree  # fmpy's dependency
+        from lxml import etree  # lazy: fmpy's dependency, only for a faulty description
 
         root = etree.fromstring(data)
     except Exception:  # noqa: BLE001 - not parseable by lxml either: fmpy's words
@@ -120,8 +120,8 @@ def _reference_problem(root) -> str | None:
 
 def _schema_problem(root) -> str | None:
     """The FMI schema's first complaint about the model description (fmpy's schemas)."""
-    import fmpy
-    from lxml import etree
+    import fmpy  # lazy: as in explain
+    from lxml import etree  # lazy: as in explain
 
     version = root.get("fmiVersion") or ""
     major = "fmi2" if version.startswith("2.") else "fmi3" if version.startswith("3.") else None

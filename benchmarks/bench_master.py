@@ -25,6 +25,10 @@ Measured side by side in one run (ratios; the machines are shared and noisy):
    (BouncingBall -> Feedthrough, 10 steps): ``Master`` built, initialized, run and closed, and
    the whole ``simulate`` stage (log, simulation.json, summary.json), best of 10 in a warm
    process.
+7. the log's tail file (``log.parquet.tail``: the rows a crash would otherwise lose): 5000 rows
+   of the default scenario's width (with the EKF) logged the way a run does (each row staged
+   when recorded, then appended), with and without the tail file, interleaved, best of 5; the
+   difference per step beside the default scenario's time per step of (3).
 
 7. the record of every FMU call that the run-wide watchdog times and a crashed run's report
    names (:mod:`uwcosim.core.fmucall`): (2) with the record as it is against (2) with its
@@ -417,6 +421,30 @@ def print_call_record(map_file: str) -> None:
           f"{1e6 * r['calls'] * (r['pair'] - r['empty']):.2f} us per step")
 
 
+def log_tail_cost(repeats: int = 5) -> tuple[float, float, int]:
+    """Best-of seconds per row of logging 5000 rows (stage + append, as the recorder does with
+    estimators) without and with the tail file; and the row width."""
+    from uwcosim.runlog import RunLogger
+
+    width, flags = 80, 3  # the default scenario with the EKF: 79 columns and time, 3 flags
+    rows = np.random.default_rng(0).normal(size=(STEPS, width))
+    got = np.ones(flags, dtype=bool)
+    best = {False: [], True: []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(repeats):
+            for tail in (False, True):
+                log = RunLogger(Path(tmp) / f"log{i}{tail}.parquet",
+                                [f"c{j}" for j in range(width - 1)], ["f0", "f1", "f2"], {},
+                                1000, pending=64, tail=tail)
+                a = time.perf_counter()
+                for k in range(STEPS):
+                    log.stage(k, rows[k], [True])
+                    log.append(rows[k], got)
+                log.close()
+                best[tail].append((time.perf_counter() - a) / STEPS)
+    return min(best[False]), min(best[True]), width
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--record", action="store_true", help="item 7 alone (the FMU call record)")
@@ -461,6 +489,11 @@ def main() -> None:
     t_master, t_sim = fixed_cost()
     print(f"per-run fixed cost, plain CS run of two FMUs in process: master {1e3 * t_master:.1f} "
           f"ms, simulate stage {1e3 * t_sim:.1f} ms (goal < 20 ms)")
+    off, on, width = log_tail_cost()
+    print(f"log tail file ({width} columns, staged + appended): {1e6 * off:.2f} us/row without, "
+          f"{1e6 * on:.2f} us/row with: +{1e6 * (on - off):.2f} us/step = "
+          f"{100 * (on - off) / (demo / STEPS):.1f}% of the default scenario's "
+          f"{1e6 * demo / STEPS:.0f} us/step of (3)")
 
 
 if __name__ == "__main__":

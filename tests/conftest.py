@@ -1,6 +1,6 @@
 """Shared fixtures: the project's FMUs in fmus/ (built incrementally, with the test model
-FaultInjector of tests/fault_injector.py and Crasher of tests/crasher.py) and scenario
-helpers."""
+FaultInjector of tests/fault_injector.py and Crasher of tests/crasher.py, both on
+tests/hooked_model.py) and scenario helpers."""
 
 from __future__ import annotations
 

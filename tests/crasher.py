@@ -11,32 +11,28 @@ of the tests include ``Crasher.fmu`` and ``Crasher_fmi2.fmu``.
 
 from __future__ import annotations
 
-from pathlib import Path
+try:
+    from hooked_model import DATA, hooked_spec
+    from hooked_model import register as register_model
+except ImportError:  # pragma: no cover - imported as tests.<module> from the project root
+    from tests.hooked_model import DATA, hooked_spec
+    from tests.hooked_model import register as register_model
 
-import casadi as ca
-
-from uwcosim.fmu import specs
 from uwcosim.fmu.specs import ModelSpec, Var
 
 NAME = "Crasher"
-HOOKS = Path(__file__).resolve().parent / "data" / "crasher" / "crash.c"
+HOOKS = DATA / "crasher" / "crash.c"
 #: ``mode`` and ``where`` codes (as in crash.c)
 MODES = {"segfault": 1, "exit": 2, "abort": 3, "spin": 4, "sleep": 5}
 WHERE = {"doStep": 1, "get": 2, "init": 3}
 
 
-def _equations(x, u, p, z):
-    return ca.SX(0, 1), u[0]
-
-
 def crasher_spec() -> ModelSpec:
-    return ModelSpec(
-        name=NAME,
-        description="Test model y = u that segfaults, exits, aborts, spins or sleeps at a "
-                    "given time, in doStep, an output getter or initialization",
-        equations=_equations,
-        inputs=(Var("u", None, 0.0, "Input"),),
-        params=(
+    return hooked_spec(
+        NAME,
+        "Test model y = u that segfaults, exits, aborts, spins or sleeps at a given time, in "
+        "doStep, an output getter or initialization",
+        (
             Var("mode", None, 0.0, "0 none, 1 segfault, 2 exit(exit_code), 3 abort, 4 spin, "
                 "5 sleep", tunable=True),
             Var("where", None, 0.0, "1 doStep, 2 output getter, 3 initialization",
@@ -45,11 +41,10 @@ def crasher_spec() -> ModelSpec:
             Var("crash_time", "s", 0.0, "The fault happens once time >= crash_time",
                 tunable=True),
         ),
-        outputs=(Var("y", None, 0.0, "Output (= u)"),),
-        hooks=HOOKS,
+        HOOKS,
     )
 
 
 def register() -> None:
     """Make ``Crasher`` a model of the FMU builder in this process."""
-    specs.MODELS.setdefault(NAME, crasher_spec)
+    register_model(NAME, crasher_spec)

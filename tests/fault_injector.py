@@ -9,30 +9,26 @@ the FMU builds of the tests (``fmus/``, ``fmu_dir``) include ``FaultInjector.fmu
 
 from __future__ import annotations
 
-from pathlib import Path
+try:
+    from hooked_model import DATA, hooked_spec
+    from hooked_model import register as register_model
+except ImportError:  # pragma: no cover - imported as tests.<module> from the project root
+    from tests.hooked_model import DATA, hooked_spec
+    from tests.hooked_model import register as register_model
 
-import casadi as ca
-
-from uwcosim.fmu import specs
 from uwcosim.fmu.specs import ModelSpec, Var
 
 NAME = "FaultInjector"
-HOOKS = Path(__file__).resolve().parent / "data" / "fault_injector" / "faults.c"
-
-
-def _equations(x, u, p, z):
-    return ca.SX(0, 1), u[0]
+HOOKS = DATA / "fault_injector" / "faults.c"
 
 
 def fault_injector_spec() -> ModelSpec:
     never = 1e300
-    return ModelSpec(
-        name=NAME,
-        description="Test model y = u that fails, outputs NaN or hangs at given times "
-                    "(time >= threshold, compared with a relative tolerance of 1e-9)",
-        equations=_equations,
-        inputs=(Var("u", None, 0.0, "Input"),),
-        params=(
+    return hooked_spec(
+        NAME,
+        "Test model y = u that fails, outputs NaN or hangs at given times (time >= threshold, "
+        "compared with a relative tolerance of 1e-9)",
+        (
             Var("fail_time", "s", never, "Calls return Error when time >= fail_time",
                 tunable=True),
             Var("nan_time", "s", never, "Output is NaN when time >= nan_time", tunable=True),
@@ -40,11 +36,10 @@ def fault_injector_spec() -> ModelSpec:
                 tunable=True),
             Var("hang_seconds", "s", 3600.0, "Duration of the simulated hang", tunable=True),
         ),
-        outputs=(Var("y", None, 0.0, "Output (= u)"),),
-        hooks=HOOKS,
+        HOOKS,
     )
 
 
 def register() -> None:
     """Make ``FaultInjector`` a model of the FMU builder in this process."""
-    specs.MODELS.setdefault(NAME, fault_injector_spec)
+    register_model(NAME, fault_injector_spec)

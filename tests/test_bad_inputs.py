@@ -10,6 +10,8 @@ import json
 import os
 import re
 import signal
+import subprocess
+import sys
 import zipfile
 from pathlib import Path
 
@@ -91,6 +93,37 @@ def files(tmp_path_factory, project_fmus) -> dict[str, Path]:
     # issue 24, item 19: modelDescription.xml problems in Python's words before
     remake("fmi1.fmu", lambda t: t.replace('fmiVersion="3.0"', 'fmiVersion="1.0"'))
     remake("noversion.fmu", lambda t: t.replace('fmiVersion="3.0"', ""))
+    # issue 24, item 19 (the leftovers): what fmpy reads with Python's words, e.g. "(6)" =
+    # KeyError 6, a <ModelStructure> entry naming a value reference no variable has
+    remake("dangling6.fmu", lambda t: t.replace('name="der(y)" valueReference="6"',
+                                                'name="der(y)" valueReference="60"'))
+    remake("novr.fmu", lambda t: t.replace('name="x" valueReference="1" ', 'name="x" '))
+    remake("baddeps.fmu", lambda t: re.sub(r'(<Output valueReference="1" dependencies=)"[^"]*"',
+                                           r'\1"a b"', t))
+    remake("novars.fmu", lambda t: re.sub(r"<ModelVariables>.*</ModelVariables>", "", t,
+                                          flags=re.S))
+    remake("noname.fmu", lambda t: t.replace('<Float64 name="psi" ', "<Float64 "))
+    remake("derivative.fmu", lambda t: t.replace('derivative="1"', 'derivative="99"'))
+    remake("noident.fmu", lambda t: t.replace('<CoSimulation modelIdentifier="AUVKinematics"',
+                                              "<CoSimulation"))
+    remake("causality.fmu", lambda t: t.replace('name="psi" valueReference="9" description='
+                                                '"Heading" causality="input"', 'name="psi" '
+                                                'valueReference="9" description="Heading" '
+                                                'causality="bogus"'))
+    with zipfile.ZipFile(project_fmus / "AUVKinematics_fmi2.fmu") as zin, \
+            zipfile.ZipFile(d / "fmi2as3.fmu", "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'fmiVersion="2.0"', b'fmiVersion="3.0"', 1)
+            zout.writestr(item, data)
+    with zipfile.ZipFile(project_fmus / "AUVKinematics_fmi2.fmu") as zin, \
+            zipfile.ZipFile(d / "noguid2.fmu", "w") as zout:  # fmpy: None.encode() of the guid
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                data = re.sub(rb'\s+guid="[^"]*"', b"", data)
+            zout.writestr(item, data)
     with zipfile.ZipFile(src) as zin, zipfile.ZipFile(d / "latin1md.fmu", "w") as zout:
         for item in zin.infolist():
             data = zin.read(item)
@@ -261,6 +294,38 @@ CASES = [
     ("fmu-xml-not-utf8", lambda f: FMU(f, "latin1md.fmu"), 3,
      "latin1md.fmu: invalid modelDescription.xml: not well-formed XML in its declared "
      "encoding"),
+    ("estimation-initial-std-overflows",
+     lambda f: [*S("estimation.initial_std=[1e200, 1e200, 0.05, 0.05]"), *FAST], 2,
+     "key 'estimation.initial_std': 1e+200 squared is not a finite variance"),
+    ("fmu-fmi2-no-guid", lambda f: FMU(f, "noguid2.fmu"), 3,
+     "noguid2.fmu: FMU 'vehicle' cannot be run: its modelDescription.xml has no guid (FMI 2.0 "
+     "requires one)"),
+    ("fmu-check-fmi2-no-guid", lambda f: ["fmu", "check", str(f["dir"] / "noguid2.fmu"),
+                                          "--role", "vehicle"], 3,
+     "FMU 'noguid2' cannot be run: its modelDescription.xml has no guid"),
+    ("fmu-md-dangling-value-reference", lambda f: FMU(f, "dangling6.fmu"), 3,
+     "dangling6.fmu: invalid modelDescription.xml: line 56: <ContinuousStateDerivative ...>: "
+     "valueReference 6 names no variable (no variable has value reference 6)"),
+    ("fmu-md-no-value-reference", lambda f: FMU(f, "novr.fmu"), 3,
+     "novr.fmu: invalid modelDescription.xml: line 30: <Float64 ...>: variable 'x' has "
+     "valueReference=None, expected an unsigned 32-bit integer"),
+    ("fmu-md-dependencies-not-integers", lambda f: FMU(f, "baddeps.fmu"), 3,
+     "<Output ...>: dependencies='a' is not an integer"),
+    ("fmu-md-no-model-variables", lambda f: FMU(f, "novars.fmu"), 3,
+     "invalid modelDescription.xml: no <ModelVariables> element"),
+    ("fmu-md-variable-without-name", lambda f: FMU(f, "noname.fmu"), 3,
+     "invalid modelDescription.xml: line 38: <Float64 ...>: a variable without a name"),
+    ("fmu-md-dangling-derivative", lambda f: FMU(f, "derivative.fmu"), 3,
+     "line 34: <Float64 ...>: derivative 99 names no variable"),
+    ("fmu-md-no-model-identifier", lambda f: FMU(f, "noident.fmu"), 3,
+     "invalid modelDescription.xml: <CoSimulation> has no modelIdentifier (the name of its "
+     "binary, binaries/x86_64-linux/NAME.so)"),
+    ("fmu-md-schema", lambda f: FMU(f, "causality.fmu"), 3,
+     "invalid modelDescription.xml: line 38: Element 'Float64', attribute 'causality': "
+     "[facet 'enumeration'] The value 'bogus' is not an element of the set"),
+    ("fmu-md-fmi2-variables-as-fmi3", lambda f: FMU(f, "fmi2as3.fmu"), 3,
+     "invalid modelDescription.xml: line 29: <ScalarVariable ...>: a FMI 2.0 <ScalarVariable> "
+     "element in <ModelVariables> of an FMU with fmiVersion='3.0'"),
     # -- command-line arguments --
     ("run-no-scenario", lambda f: ["run"], 2, "required: scenario"),
     ("run-seed-not-int", lambda f: ["run", str(SCEN), "--seed", "x"], 2, "--seed"),
@@ -763,3 +828,24 @@ def test_the_numpy_kernels_are_recorded_and_reproduced(tmp_path):
     from uwcosim.reports.reproduce import reproduce_command
 
     assert not reproduce_command({}, {"scenario_path": "s.toml"}).startswith("UWCOSIM")
+
+
+def test_numpy_warnings_are_one_line_each_and_recorded(tmp_path):
+    """Item 19: a zero measurement noise makes numpy warn in the particle filter (weights of
+    a zero variance); the run prints no raw ``RuntimeWarning`` (and no source line under it),
+    one line naming where, and ``summary.json`` counts it under ``warnings``."""
+    out = tmp_path / "run"
+    proc = subprocess.run(
+        [sys.executable, "-m", "uwcosim", "run", str(SCEN), "--out", str(out), "--no-figures",
+         "--set", "run.duration=10", "--set", "sensors.depth.sigma=[0.0]", "--set",
+         'estimators={pf={type="pf", n_particles=200}}'], cwd=ROOT, capture_output=True,
+        text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "RuntimeWarning" not in proc.stderr, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if "numerical warning" in ln]
+    assert len(lines) == 1 and "numerical warning at uwcosim/filters/particle.py:" in lines[0] \
+        and "divide by zero encountered in divide" in lines[0], proc.stderr
+    warned = json.loads((out / "summary.json").read_text())["warnings"]
+    assert [w["message"] for w in warned] == ["divide by zero encountered in divide"]
+    assert warned[0]["where"].startswith("uwcosim/filters/particle.py:")
+    assert warned[0]["count"] >= 1

@@ -80,9 +80,10 @@ def test_an_fmu_that_ends_the_process_fails_the_run(tmp_path, project_fmus, chil
     _failed_with_one_line(proc, out, f"FMU 'crash' ended the process {expected}")
     if where == "init":  # before the first row group: no log, no unreadable stub of one
         assert not (out / "log.parquet").exists() and "(no log row was written)" in proc.stderr
-    else:  # the finished row groups up to the crash
+    else:  # every row up to the crash (item 4: the tail's rows after the row groups)
         times = read_log(out / "log.parquet")[0]["time"].tolist()
-        assert times in ([0.0, 1.0, 2.0, 3.0], [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]), times
+        last = 4.0 if where == "get" else 5.0  # a getter at t=5 never gave row 5's outputs
+        assert times == [float(k) for k in range(int(last) + 1)], times
     assert list(Path(child_env["TMPDIR"]).iterdir()) == []
 
 
@@ -269,6 +270,73 @@ def test_the_unpacked_size_limit_is_configurable_and_only_what_is_needed_is_unpa
     assert all(n == "modelDescription.xml" or n.startswith(("binaries/", "resources/"))
                for n in got)
     assert {n for n in names if n.startswith("binaries/x86_64-linux/")} <= got
+
+
+def _one_line(proc, code: int, expected: str) -> None:
+    assert proc.returncode == code, (proc.returncode, proc.stderr)
+    assert expected in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert without_progress(proc.stderr).strip().count("\n") == 0, proc.stderr
+
+
+def test_the_unpacked_size_limit_is_a_scenario_key(tmp_path, project_fmus, child_env):
+    """``run.fmu_max_unpacked_mb`` sets the limit for the scenario's FMUs (over the environment
+    variable), in this process and in an FMU's worker process (``timeout_s``); ``check`` applies
+    it as ``run`` does; a bad value is a scenario error naming the key."""
+    fmu = _with_member(project_fmus / "DVL.fmu", tmp_path / "Docs.fmu",
+                       "documentation/manual.bin", 3 << 20)
+    dvl = ["--set", f'fmus.dvl.path="{fmu}"']
+    proc = _run(tmp_path / "a", *dvl, "--set", "run.fmu_max_unpacked_mb=2", env=child_env)
+    _one_line(proc, 3, f"{fmu}: FMU archive unpacks to 3 MiB, more than the limit of 2 MiB "
+                       f"(run.fmu_max_unpacked_mb)")
+    check = subprocess.run([sys.executable, "-m", "uwcosim", "check", str(SCEN), *dvl, "--set",
+                            "run.fmu_max_unpacked_mb=2"], cwd=ROOT, env=child_env,
+                           capture_output=True, text=True, timeout=120)
+    assert check.returncode == 3 and "more than the limit of 2 MiB (run.fmu_max_unpacked_mb)" \
+        in check.stderr, (check.returncode, check.stderr)
+    small = {**child_env, "UWCOSIM_FMU_MAX_UNPACKED_MB": "2"}
+    proc = _run(tmp_path / "b", *dvl, "--set", "run.fmu_max_unpacked_mb=8", env=small)
+    assert proc.returncode == 0, proc.stderr
+    proc = _run(tmp_path / "c", "--set", f'fmus.dvl={{path="{fmu}", timeout_s=30}}', "--set",
+                "run.fmu_max_unpacked_mb=8", env=small)
+    assert proc.returncode == 0, proc.stderr  # the worker process has the scenario's limit
+    proc = _run(tmp_path / "d", *dvl, env=small)
+    _one_line(proc, 3, "more than the limit of 2 MiB (UWCOSIM_FMU_MAX_UNPACKED_MB)")
+    proc = _run(tmp_path / "e", "--set", "run.fmu_max_unpacked_mb=0", env=child_env)
+    _one_line(proc, 2, "run.fmu_max_unpacked_mb")
+    assert list(Path(child_env["TMPDIR"]).iterdir()) == []
+
+
+def test_an_ssp_zip_bomb_is_refused_before_it_is_read(tmp_path, project_fmus, child_env):
+    """The limit applies to an ``.ssp`` archive too (item 7): one line, exit 3, alone or as a
+    scenario's ``system.ssp`` (where ``run.fmu_max_unpacked_mb`` sets it)."""
+    from test_ssp import auv_ssp
+
+    ssp = auv_ssp(tmp_path / "auv.ssp", project_fmus)
+    base = sum(i.file_size for i in zipfile.ZipFile(ssp).infolist()) / (1 << 20)
+    big = _with_member(ssp, tmp_path / "big.ssp", "resources/big.bin", 8 << 20)
+    assert big.stat().st_size < ssp.stat().st_size + (1 << 20)  # + 8 MiB of deflated zeros
+    proc = subprocess.run([sys.executable, "-m", "uwcosim", "run", str(big), "--out",
+                           str(tmp_path / "a"), "--no-figures"], cwd=ROOT,
+                          env={**child_env, "UWCOSIM_FMU_MAX_UNPACKED_MB": "4"},
+                          capture_output=True, text=True, timeout=120)
+    _one_line(proc, 3, f"{big}: SSP archive unpacks to {base + 8:.0f} MiB, more than the limit "
+                       f"of 4 MiB (UWCOSIM_FMU_MAX_UNPACKED_MB)")
+    assert not (tmp_path / "a").exists()
+    toml = tmp_path / "s.toml"
+    toml.write_text('name = "s"\n[run]\nfmu_max_unpacked_mb = 4\n[system]\nssp = "big.ssp"\n')
+    proc = subprocess.run([sys.executable, "-m", "uwcosim", "run", str(toml), "--out",
+                           str(tmp_path / "b"), "--no-figures"], cwd=ROOT, env=child_env,
+                          capture_output=True, text=True, timeout=120)
+    _one_line(proc, 3, f"{big}: SSP archive unpacks to {base + 8:.0f} MiB, more than the limit "
+                       f"of 4 MiB (run.fmu_max_unpacked_mb)")
+    toml.write_text('name = "s"\n[run]\nfmu_max_unpacked_mb = "x"\n[system]\nssp = "big.ssp"\n')
+    proc = subprocess.run([sys.executable, "-m", "uwcosim", "run", str(toml), "--out",
+                           str(tmp_path / "c"), "--no-figures"], cwd=ROOT, env=child_env,
+                          capture_output=True, text=True, timeout=120)
+    _one_line(proc, 2, "key 'run.fmu_max_unpacked_mb': expected a positive number of MiB "
+                       "(got 'x')")
+    assert list(Path(child_env["TMPDIR"]).iterdir()) == []
 
 
 CAMPAIGN = """

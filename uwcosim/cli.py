@@ -194,10 +194,12 @@ def _cmd_schema(args) -> int:
 
 
 def _cmd_demo(args) -> int:
+    from uwcosim.core.supervise import announce
     from uwcosim.demo import prepare_cache
     from uwcosim.scenario.load import load_scenario
 
     loaded = load_scenario(prepare_cache(), args.set or [], overrides_base=Path.cwd())
+    announce(args.out)  # supervised as a run is
     progress = _Progress(loaded, args)
     try:
         from uwcosim.run.simulate import run_scenario
@@ -695,7 +697,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _supervised(args) -> int:
-    """``run`` in a child process whose death in an FMU call is reported (exit 3)."""
+    """``run`` or ``demo`` in a child process whose death in an FMU call is reported (exit 3);
+    a campaign supervises its runs itself (:func:`uwcosim.core.supervise.supervised_map`)."""
     from uwcosim.core.supervise import Death, supervise
 
     result = supervise(lambda: _dispatch(args))
@@ -764,7 +767,8 @@ def _main(argv: list[str] | None, supervise: bool | None) -> int:
             print(f"uwcosim: error: --{name} '': an empty path; give a folder or file name",
                   file=sys.stderr)
             return 2
-    if args.func is _cmd_run and (argv is None if supervise is None else supervise):
+    if args.func in (_cmd_run, _cmd_demo) and (argv is None if supervise is None
+                                                else supervise):
         return _supervised(args)
     return _dispatch(args)
 

@@ -13,7 +13,8 @@ not a letter, digit or underscore replaced by ``_``, shortened to MATLAB's 63 ch
 unique with a numeric suffix) and ``metadata`` (the log's ``uwcosim`` metadata as JSON text).
 
 A log whose writer was killed (no Parquet footer) is exported from its journal
-(``log.parquet.journal``: every finished row group), as ``report`` and ``regress`` read it.
+(``log.parquet.journal``: every finished row group) and tail file (the rows after them), as
+``report`` and ``regress`` read it.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from uwcosim.core.errors import UwcosimError
-from uwcosim.runlog.parquet import journal_path, read_journal
+from uwcosim.runlog.parquet import read_unfinished, unfinished
 from uwcosim.runlog.units import labelled, units_of
 
 MATLAB_NAME_MAX = 63
@@ -45,8 +46,8 @@ def _read(run: str | Path):
     try:
         return path, pq.read_table(path)
     except Exception as exc:  # noqa: BLE001 - pyarrow raises several types for bad files
-        if journal_path(path).is_file():  # the run was killed before the footer: as read_log
-            return path, read_journal(journal_path(path))
+        if unfinished(path):  # the run was killed before the footer: as read_log
+            return path, read_unfinished(path)
         raise UwcosimError(f"{path}: not a readable Parquet run log ({exc})") from None
 
 

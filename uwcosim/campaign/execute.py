@@ -1,9 +1,17 @@
-"""Execute a campaign's runs: in this process, on local worker processes, or on Dask.
+"""Execute a campaign's runs: in a supervised child process, on local worker processes, or on
+Dask.
 
 Each finished run is written at once to ``results/<variant>__<run>.json`` (atomically), so an
 interruption loses nothing already finished and ``--resume`` skips those runs (a record that is
 not valid JSON is taken as not done and run again). A failed run is recorded with its error
 and the campaign goes on; its run directory is kept in ``failed/<variant>/run_NNNNN``.
+
+``--workers 1`` runs the tasks one after the other in a forked child process
+(:func:`uwcosim.core.supervise.supervised_map`; FMU instances are reused between its runs as in
+a pool worker): an FMU that ends that process (``exit``, ``abort``, a segmentation fault) or the
+run-wide watchdog (``run.fmu_timeout_s``) fails that run, as ``uwcosim run`` reports it (one
+line: which FMU call, how; the run directory finished from its journal and kept under
+``failed/``), and a new child goes on with the next run.
 
 Pool workers die with the campaign (``prctl`` parent-death signal) and ignore SIGINT, SIGTERM
 and SIGHUP (the campaign process decides); an interrupted campaign kills them. Their temporary
@@ -31,7 +39,9 @@ from uwcosim.campaign.aggregate import read_record
 from uwcosim.campaign.spec import Task
 from uwcosim.core.errors import RunInterrupted, ScenarioError, UwcosimError
 from uwcosim.core.process import die_with_parent
+from uwcosim.core.supervise import Death, announce, supervised_map
 from uwcosim.master.master import Master
+from uwcosim.run.aftermath import finish_dead_run
 from uwcosim.run.simulate import run_scenario
 from uwcosim.scenario import load_scenario, to_system
 
@@ -72,6 +82,7 @@ def execute_run(task: Task) -> dict:
         else:
             tmp = tempfile.mkdtemp(prefix="uwcosim_run_")
             out = Path(tmp)
+        announce(out)  # in a supervised child: where a dead run is finished
         # a replay has no FMUs to keep: its source is made by each run
         cached, master = _master_for(key, loaded) if loaded.spec.replay is None \
             else (None, None)
@@ -104,6 +115,18 @@ def execute_run(task: Task) -> dict:
     return record
 
 
+def dead_run_record(task: Task, death: Death) -> dict:
+    """The record of a run whose process ended in it (:func:`supervised_map`): failed, with the
+    one line ``uwcosim run`` would print; its run directory finished and kept."""
+    error = death.message()
+    if death.out_dir is not None:
+        error = finish_dead_run(death.out_dir, error)
+        if not task.log_dir:  # a temporary run directory: kept under failed/
+            error = _kept_failed(error, death.out_dir, task)
+    return {"variant": task.variant, "run": task.run, "seed": task.seed, "status": "failed",
+            "error": error, "estimators": {}}
+
+
 def _kept_failed(error: str, tmp: str | None, task: Task) -> str:
     """Move a failed run's temporary directory under the campaign's ``failed/`` and name that
     path in the error (the temporary one is deleted)."""
@@ -131,6 +154,7 @@ def _worker_init(parent: int, tmp: str | None = None) -> None:
         os.environ["TMPDIR"] = tmp
 
     logging.getLogger("uwcosim.run.bank").addHandler(logging.NullHandler())
+    logging.getLogger("uwcosim.core.numwarn").addHandler(logging.NullHandler())  # in summary
 
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(s, signal.SIG_IGN)
@@ -312,8 +336,9 @@ def _iterate(tasks: list[Task], workers: int, scheduler: str | None) -> Iterable
     if scheduler:
         yield from _dask(tasks, scheduler)
     elif workers <= 1:
-        for t in tasks:
-            yield t, execute_run(t)
+        for i, record in supervised_map(execute_run, tasks):
+            yield tasks[i], dead_run_record(tasks[i], record) \
+                if isinstance(record, Death) else record
     else:
         import multiprocessing as mp
 

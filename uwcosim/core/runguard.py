@@ -224,8 +224,9 @@ class RunGuard:
         scratch.remove_all()  # os._exit runs no atexit handler or finalizer
         try:
             print(f"uwcosim: error: {message}", file=sys.stderr, flush=True)
-        finally:
-            supervise.done(code)  # the run chose its exit status (a supervised child)
+        finally:  # the run chose its exit status (a supervised child), and said why
+            supervise.report_error(message)
+            supervise.done(code)
             os._exit(code)
 
 

@@ -1,4 +1,5 @@
-"""``uwcosim run`` in a child process, so that nothing an FMU does ends the run silently.
+"""``uwcosim run``, ``demo`` and the runs of ``campaign --workers 1`` in a child process, so
+that nothing an FMU does ends them silently.
 
 A call into an in-process FMU's library can end the whole process: ``exit(0)``, ``exit(n)``,
 ``abort()``, a segmentation fault, at library load, at initialization, in ``doStep`` or in a
@@ -11,9 +12,13 @@ which exit status it chose (:func:`done`). A child that ends without saying so w
 something else: the parent names the FMU call it was in (:mod:`uwcosim.core.fmucall`, in shared
 memory) and how it ended, and returns a :class:`Death` for the caller to finish the run
 directory (``uwcosim.run.aftermath``). No per-step cost: the FMUs still run in the process
-that steps them. The child ends with ``os._exit`` after what the interpreter's exit would do
-for a run (workers killed, scratch folders removed, logging and output flushed), not after its
-teardown of every module (slow with Numba loaded: most of the time a stop took).
+that steps them. :class:`Child` is that child and its messages (:func:`tell`, read as they
+arrive); :func:`supervised_map` runs a sequence of jobs in one (a campaign's runs), yields each
+result as it comes and, when the child dies in a job, that job's :class:`Death`, then goes on
+with the next job in a new child. The child ends with ``os._exit`` after what the
+interpreter's exit would do for a run (workers killed, scratch folders removed, logging and
+output flushed), not after its teardown of every module (slow with Numba loaded: most of the
+time a stop took).
 
 The child's temporary files (unzipped FMUs, extracted SSP members, its workers' files) go
 to a folder of the parent's (``TMPDIR``), removed when the child has ended, however it ended.
@@ -30,6 +35,7 @@ directly.
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import shutil
@@ -37,10 +43,15 @@ import signal
 import sys
 import tempfile
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from functools import partial
+from typing import TypeVar
 
 from uwcosim.core import fmucall, process, scratch
+from uwcosim.core.errors import RunInterrupted, UwcosimError
+
+T = TypeVar("T")
 
 _FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 _fd: int | None = None  # the child's end of the pipe
@@ -58,9 +69,13 @@ class Death:
     call: tuple[str, str, float, float] | None
     #: the signal the parent passed on before the child ended, or None
     forwarded: int | None
+    #: the one-line error the child reported before it ended (the run-wide watchdog), or None
+    error: str | None = None
 
     def message(self) -> str:
         """One line: which FMU call ended the process, and how."""
+        if self.error:
+            return self.error
         if self.call is not None:
             fmu, what, t, _ = self.call
             return (f"FMU '{fmu}' ended the process during {what} at t={t:g} ({self.how}; "
@@ -70,20 +85,29 @@ class Death:
 
 def announce(out_dir: str | os.PathLike) -> None:
     """In a supervised child: the run directory (where the parent finishes a dead run)."""
-    _send(f"out {os.fspath(out_dir)}")
+    tell("out", os.fspath(out_dir))
 
 
 def done(code: int) -> None:
     """In a supervised child: the exit status it chose (the last thing it does)."""
-    _send(f"done {int(code)}")
+    tell("done", str(int(code)))
 
 
-def _send(line: str) -> None:
+def report_error(message: str) -> None:
+    """In a supervised child: the one-line error it ends with (before :func:`done`)."""
+    tell("error", message)
+
+
+def tell(key: str, value: str) -> None:
+    """In a supervised child: one message ``key value`` to the parent (:meth:`Child.messages`;
+    a newline in ``value`` becomes a space); nothing in an unsupervised process."""
     global _fd
     if _fd is None:
         return
+    data = f"{key} {value.replace(chr(10), ' ')}\n".encode("utf-8", "surrogateescape")
     try:
-        os.write(_fd, (line.replace("\n", " ") + "\n").encode("utf-8", "surrogateescape"))
+        while data:  # a signal may interrupt a long write part way
+            data = data[os.write(_fd, data):]
     except OSError:
         _fd = None
 
@@ -102,43 +126,74 @@ def _how(status: int) -> str:
 def supervise(command: Callable[[], int]) -> int | Death:
     """Run ``command`` in a forked child and return its exit status, or the :class:`Death` of
     a child that did not choose one (see the module docstring)."""
-    global _fd
     if not hasattr(os, "fork") or os.environ.get("UWCOSIM_SUPERVISE", "1") == "0":
         return command()
-    r, w = os.pipe()
-    fmucall.clear()
-    parent = os.getpid()
-    tmp = tempfile.mkdtemp(prefix="uwcosim_proc_")  # the child's temporary folder
-    sys.stdout.flush()
-    sys.stderr.flush()
-    target: list[int] = []
-    forwarded: list[int] = []
+    child = Child(command)
+    try:
+        for _ in child.messages():
+            pass
+    finally:
+        child.close()
+    return child.result
 
-    def forward(signum, frame) -> None:
-        forwarded.append(signum)
-        for pid in target:
-            try:
-                os.kill(pid, signum)
-            except ProcessLookupError:
-                pass
 
-    saved = {}  # installed before the fork: a signal in between is passed on, not lost
-    for s in _FORWARDED:
-        if signal.getsignal(s) is not signal.SIG_IGN:
-            saved[s] = signal.signal(s, forward)
-    before = len(forwarded)
-    pid = os.fork()
-    if pid == 0:  # the child: the command, then its exit status to the parent
-        for s, old in saved.items():
+class Child:
+    """``command`` in a forked child (see the module docstring): :meth:`messages` yields what
+    it says (:func:`tell`) as it arrives; then :attr:`result` is its exit status or its
+    :class:`Death`. :meth:`close` ends it (if it still runs) and removes its temporary
+    folder."""
+
+    def __init__(self, command: Callable[[], int]) -> None:
+        self.result: int | Death | None = None
+        self.out_dir: str | None = None
+        self.error: str | None = None
+        self._code: int | None = None
+        self._pid: int | None = None
+        self._forwarded: list[int] = []
+        self._saved: dict = {}
+        self._r, w = os.pipe()
+        fmucall.clear()
+        parent = os.getpid()
+        self.tmp = tempfile.mkdtemp(prefix="uwcosim_proc_")  # the child's temporary folder
+        sys.stdout.flush()
+        sys.stderr.flush()
+        target: list[int] = []
+        forwarded = self._forwarded
+
+        def forward(signum, frame) -> None:
+            forwarded.append(signum)
+            for pid in target:
+                try:
+                    os.kill(pid, signum)
+                except ProcessLookupError:
+                    pass
+
+        # installed before the fork: a signal in between is passed on, not lost
+        for s in _FORWARDED:
+            if signal.getsignal(s) is not signal.SIG_IGN:
+                self._saved[s] = signal.signal(s, forward)
+        before = len(forwarded)
+        pid = os.fork()
+        if pid == 0:  # the child: the command, then its exit status to the parent
+            self._child(command, w, parent, forwarded[before:])
+        os.close(w)
+        self._pid = pid
+        target.append(pid)
+        for s in list(forwarded):  # arrived during the fork
+            os.kill(pid, s)
+
+    def _child(self, command: Callable[[], int], w: int, parent: int, early: list[int]):
+        global _fd
+        for s, old in self._saved.items():
             signal.signal(s, old)
-        for s in forwarded[before:]:  # reached the child before its own handlers were back
+        for s in early:  # reached the child before its own handlers were back
             signal.raise_signal(s)
-        os.close(r)
+        os.close(self._r)
         _fd = w
         os.setpgid(0, 0)  # a terminal's Ctrl-C reaches the parent only, which passes it on
         process.die_with_parent(parent)
-        tempfile.tempdir = tmp  # its scratch folders and its workers' (TMPDIR) go there
-        os.environ["TMPDIR"] = tmp
+        tempfile.tempdir = self.tmp  # its scratch folders and its workers' (TMPDIR) go there
+        os.environ["TMPDIR"] = self.tmp
         try:
             code = command()
         except SystemExit as exc:  # argparse and friends
@@ -155,27 +210,116 @@ def supervise(command: Callable[[], int]) -> int | Death:
         finally:
             done(code)
             os._exit(code)
-    os.close(w)
-    target.append(pid)
-    for s in list(forwarded):  # arrived during the fork
-        os.kill(pid, s)
-    data = b""
-    try:
-        with os.fdopen(r, "rb", buffering=0) as pipe:
-            while chunk := pipe.read(4096):
-                data += chunk
-        _, status = os.waitpid(pid, 0)
-    finally:
-        for s, old in saved.items():
+
+    def messages(self) -> Iterator[tuple[str, str]]:
+        """``(key, value)`` of each :func:`tell` of the child, as it arrives; when the child
+        has ended, :attr:`result` is set."""
+        data = b""
+        try:
+            with os.fdopen(self._r, "rb", buffering=0) as pipe:
+                self._r = -1
+                while chunk := pipe.read(65536):
+                    data += chunk
+                    *lines, data = data.split(b"\n")
+                    for line in lines:
+                        key, _, value = line.decode("utf-8", "surrogateescape").partition(" ")
+                        if key == "out":
+                            self.out_dir = value
+                        elif key == "done":
+                            self._code = int(value)
+                        elif key == "error":
+                            self.error = value
+                        else:
+                            yield key, value
+            _, status = os.waitpid(self._pid, 0)
+            self._pid = None
+        finally:
+            self._restore()
+        if self._code is not None:
+            self.result = self._code
+        else:
+            self.result = Death(_how(status), self.out_dir, fmucall.current(),
+                                self._forwarded[0] if self._forwarded else None, self.error)
+
+    def _restore(self) -> None:
+        for s, old in self._saved.items():
             signal.signal(s, old)
-        shutil.rmtree(tmp, ignore_errors=True)  # what a dead child could not remove
-    out_dir = code = None
-    for line in data.decode("utf-8", "surrogateescape").splitlines():
-        key, _, value = line.partition(" ")
-        if key == "out":
-            out_dir = value
-        elif key == "done":
-            code = int(value)
-    if code is not None:
-        return code
-    return Death(_how(status), out_dir, fmucall.current(), forwarded[0] if forwarded else None)
+        self._saved = {}
+
+    def close(self) -> None:
+        """End the child if it still runs (SIGKILL), then remove its temporary folder."""
+        if self._r >= 0:
+            os.close(self._r)
+            self._r = -1
+        if self._pid is not None:
+            try:
+                os.kill(self._pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            os.waitpid(self._pid, 0)
+            self._pid = None
+        self._restore()
+        shutil.rmtree(self.tmp, ignore_errors=True)  # what a dead child could not remove
+
+
+def supervised_map(func: Callable[[T], object], items: Sequence[T]
+                   ) -> Iterator[tuple[int, object]]:
+    """``func(item)`` for each of ``items`` in order, in a supervised child process: yields
+    ``(i, result)`` as each is done (the result passes through the pipe as JSON). When the
+    child ends during item ``i`` without its result (an FMU ended the process; the run-wide
+    watchdog ended it: :attr:`Death.error`), ``(i, Death)`` is yielded, while the child's
+    temporary folder (a run directory in it, :attr:`Death.out_dir`) still exists, and a new
+    child goes on with item ``i + 1``. Interrupted (a signal passed on to the child, which
+    stops as a run does): :class:`~uwcosim.core.errors.RunInterrupted` with the exit status
+    128 + signal; the item in progress is not yielded. ``UWCOSIM_SUPERVISE=0``: in this
+    process."""
+    if not hasattr(os, "fork") or os.environ.get("UWCOSIM_SUPERVISE", "1") == "0":
+        for i, item in enumerate(items):
+            yield i, func(item)
+        return
+    start = 0
+    while start < len(items):
+        child = Child(partial(_map_child, func, items, start))
+        current = None
+        try:
+            for key, value in child.messages():
+                if key == "item":
+                    current = int(value)
+                    child.out_dir = child.error = None
+                elif key == "result":
+                    yield current, json.loads(value)
+                    start, current = current + 1, None
+            result = child.result
+            code = result if isinstance(result, int) else None
+            if isinstance(result, Death) and result.forwarded is not None:
+                code = 128 + result.forwarded
+            if code is not None and code >= 128:
+                err = RunInterrupted(f"interrupted by signal {code - 128}")
+                err.exit_code = code
+                raise err
+            if current is None:  # between items: only an internal error ends it so
+                if start < len(items):
+                    how = result.message() if isinstance(result, Death) else \
+                        f"exit status {result}"
+                    raise UwcosimError(f"the supervised process ended before item {start} "
+                                       f"({how})")
+                return
+            if isinstance(result, int):  # it chose its status, e.g. the watchdog's 3
+                result = Death(f"the process exited with status {result}", child.out_dir,
+                               None, None, child.error)
+            yield current, result
+            start = current + 1
+        finally:
+            child.close()
+
+
+def _map_child(func: Callable, items: Sequence, start: int) -> int:
+    for i in range(start, len(items)):
+        tell("item", str(i))
+        try:
+            result = func(items[i])
+        except (KeyboardInterrupt, RunInterrupted) as exc:
+            signum = getattr(exc, "signum", None)
+            return 128 + signum if signum else int(getattr(exc, "exit_code", 130))
+        tell("result", json.dumps(result))
+    return 0

@@ -43,6 +43,7 @@ from uwcosim.evaluation.pcrb import position_bound, time_average
 from uwcosim.evaluation.trackloss import track_loss
 from uwcosim.models.states import position_velocity_indices
 from uwcosim.runlog import columns, read_log
+from uwcosim.runlog.parquet import unfinished
 from uwcosim.runlog.rundir import SIMULATION_FILE, read_json, write_json
 from uwcosim.scenario.overrides import apply_override, parse_overrides
 
@@ -168,7 +169,7 @@ def evaluate(run_dir: str | Path, out: str | Path | None = None, write: bool = T
         old = read_json(run_dir / "summary.json")
         if old is not None:
             sim = _without_metrics(old)
-    has_log = log_path.is_file() or log_path.with_name(log_path.name + ".journal").is_file()
+    has_log = log_path.is_file() or unfinished(log_path)
     if sim is None and not has_log:
         raise UwcosimError(f"{run_dir}: not a run directory (no log.parquet, no "
                            f"{SIMULATION_FILE})")

@@ -5,9 +5,12 @@ missing file, not a zip archive, a member whose compressed data is corrupt (bad 
 deflate stream: every member is read once), a member name that is absolute or climbs out of
 the folder with ``..`` (it would be extracted outside the FMU's folder), an unpacked size
 (the members' sizes in the archive's directory, checked before anything is inflated: a zip
-bomb) above :data:`MAX_UNPACKED_MB` MiB (environment variable ``UWCOSIM_FMU_MAX_UNPACKED_MB``),
-no ``modelDescription.xml``. :func:`binary_problems` checks the shared library of this platform
-for each interface (FMI 2 ``binaries/linux64``, FMI 3 ``binaries/x86_64-linux``).
+bomb) above :data:`MAX_UNPACKED_MB` MiB (the scenario key ``run.fmu_max_unpacked_mb``, applied
+with :func:`unpacked_limit` while its FMUs and SSP are opened; else the environment variable
+``UWCOSIM_FMU_MAX_UNPACKED_MB``), no ``modelDescription.xml``. :func:`archive_size_problem` is
+that check alone (an ``.ssp`` archive's, before a member is read). :func:`binary_problems`
+checks the shared library of this platform for each interface (FMI 2 ``binaries/linux64``,
+FMI 3 ``binaries/x86_64-linux``).
 :func:`open_archive` checks the archive and reads its model description, :func:`open_description`
 checks the binaries too; both raise one-line :class:`~uwcosim.core.errors.FMUError` s.
 :func:`unzip` extracts what a run needs of a checked archive: ``modelDescription.xml``, this
@@ -29,6 +32,8 @@ import sys
 import xml.etree.ElementTree as ET
 import zipfile
 import zlib
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
 from typing import TYPE_CHECKING
 
@@ -38,12 +43,16 @@ if TYPE_CHECKING:
 from uwcosim.core import scratch
 from uwcosim.core.errors import FMUError, ScenarioError
 from uwcosim.core.paths import is_project_fmu
+from uwcosim.fmi.description_errors import explain
 
 INTERFACE_NAMES = {"cs": "co-simulation", "me": "model exchange"}
 MIB = 1 << 20
 #: the default limit of an FMU archive's unpacked size (MiB), and the variable that sets it
 MAX_UNPACKED_MB = 512
 MAX_UNPACKED_ENV = "UWCOSIM_FMU_MAX_UNPACKED_MB"
+#: the scenario key that sets it for a scenario's FMUs and SSP (:func:`unpacked_limit`)
+MAX_UNPACKED_KEY = "run.fmu_max_unpacked_mb"
+_limit: list[float] = []  # the limits (MiB) of the unpacked_limit blocks this process is in
 #: what "FMU not found" adds for one of the project's own FMUs (:func:`is_project_fmu`)
 BUILD_HINT = " (build the project's FMUs with 'uwcosim fmu build')"
 
@@ -57,9 +66,31 @@ def sha256_file(path: Path) -> str:
     return h.hexdigest()
 
 
+@contextmanager
+def unpacked_limit(mb: float | None) -> Iterator[None]:
+    """Inside the block, the unpacked-size limit is ``mb`` MiB (the scenario key
+    :data:`MAX_UNPACKED_KEY`); None: the environment variable's or the default, as outside."""
+    if mb is None:
+        yield
+        return
+    _limit.append(float(mb))
+    try:
+        yield
+    finally:
+        _limit.pop()
+
+
+def limit_source() -> str:
+    """What sets the limit in force: the scenario key or the environment variable."""
+    return MAX_UNPACKED_KEY if _limit else MAX_UNPACKED_ENV
+
+
 def max_unpacked_bytes() -> int:
-    """The limit of an FMU archive's unpacked size in bytes: :data:`MAX_UNPACKED_MB` MiB, or
-    the environment variable :data:`MAX_UNPACKED_ENV` (MiB)."""
+    """The limit of an FMU archive's unpacked size in bytes: that of :func:`unpacked_limit`,
+    else :data:`MAX_UNPACKED_MB` MiB or the environment variable :data:`MAX_UNPACKED_ENV`
+    (MiB)."""
+    if _limit:
+        return int(_limit[-1] * MIB)
     text = os.environ.get(MAX_UNPACKED_ENV, "").strip()
     if not text:
         return MAX_UNPACKED_MB * MIB
@@ -88,6 +119,17 @@ def member_names(path: Path) -> list[str]:
         return zf.namelist()
 
 
+def archive_size_problem(path: Path, zf: zipfile.ZipFile, what: str) -> str | None:
+    """The one line for an archive whose members' sizes (in its directory: nothing inflated)
+    add up to more than :func:`max_unpacked_bytes`, else None."""
+    cap = max_unpacked_bytes()
+    size = sum(info.file_size for info in zf.infolist())
+    if size <= cap:
+        return None
+    return (f"{path}: {what} unpacks to {size / MIB:.0f} MiB, more than the limit of "
+            f"{cap / MIB:g} MiB ({limit_source()})")
+
+
 def archive_problems(path: str | Path) -> list[str]:
     """Problems that make ``path`` unusable as an FMU archive (empty list: readable)."""
     path = Path(path)
@@ -103,11 +145,9 @@ def archive_problems(path: str | Path) -> list[str]:
             if bad:
                 return [f"{path}: unsafe FMU archive (member name {bad[0]!r} is absolute or "
                         f"contains '..')"]
-            cap = max_unpacked_bytes()
-            size = sum(info.file_size for info in zf.infolist())
-            if size > cap:  # before anything is inflated (a zip bomb)
-                return [f"{path}: FMU archive unpacks to {size / MIB:.0f} MiB, more than the "
-                        f"limit of {cap / MIB:g} MiB ({MAX_UNPACKED_ENV})"]
+            too_big = archive_size_problem(path, zf, "FMU archive")
+            if too_big:  # before anything is inflated (a zip bomb)
+                return [too_big]
             for info in zf.infolist():  # inflate every member and check its CRC
                 try:
                     with zf.open(info) as fh:
@@ -135,8 +175,15 @@ def read_model(path: str | Path) -> ModelDescription:
     try:
         return read_model_description(str(path), validate=False)
     except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for bad XML
-        raise FMUError(f"{path}: invalid modelDescription.xml ({type(exc).__name__}: {exc})"
-                       ) from None
+        why = explain(_description_bytes(path), exc)  # in the file's terms, not Python's
+        raise FMUError(f"{path}: invalid modelDescription.xml: {why}") from None
+
+
+def _description_bytes(path: str | Path) -> bytes:
+    if Path(path).is_dir():  # an unzipped FMU folder
+        return (Path(path) / "modelDescription.xml").read_bytes()
+    with zipfile.ZipFile(path) as zf:
+        return zf.read("modelDescription.xml")
 
 
 def xml_problem(path: str | Path) -> str | None:
@@ -144,12 +191,7 @@ def xml_problem(path: str | Path) -> str | None:
     fmpy reads it (its messages: "int() argument must be ... not 'NoneType'" for
     ``fmiVersion="1.0"``, a temporary path that does not exist for a non-UTF-8 file)."""
     try:
-        if Path(path).is_dir():  # an unzipped FMU folder
-            data = (Path(path) / "modelDescription.xml").read_bytes()
-        else:
-            with zipfile.ZipFile(path) as zf:
-                data = zf.read("modelDescription.xml")
-        root = ET.fromstring(data)
+        root = ET.fromstring(_description_bytes(path))
     except ET.ParseError as exc:
         return (f"not well-formed XML in its declared encoding ({exc}; an XML file without "
                 f"an encoding declaration must be UTF-8)")
@@ -180,6 +222,11 @@ def binary_problems(path: str | Path, md: ModelDescription,
         kind = md.coSimulation if iface == "cs" else md.modelExchange
         if kind is None:
             continue
+        if not kind.modelIdentifier:  # the binary's name
+            tag = "CoSimulation" if iface == "cs" else "ModelExchange"
+            return [f"{path}: invalid modelDescription.xml: <{tag}> has no modelIdentifier "
+                    f"(the name of its binary, binaries/{plat}/NAME"
+                    f"{fmpy.sharedLibraryExtension})"]
         lib = f"binaries/{plat}/{kind.modelIdentifier}{fmpy.sharedLibraryExtension}"
         if lib not in names:
             found = sorted({n.split("/")[1] for n in names

@@ -42,6 +42,7 @@ from uwcosim.core import fmucall, process, runguard, scratch
 from uwcosim.core.errors import FMUError, RunInterrupted, ScenarioError
 from uwcosim.core.paths import PACKAGE_DIR
 from uwcosim.fmi.adapter import FMUAdapter
+from uwcosim.fmi.archive import MAX_UNPACKED_ENV, MIB, max_unpacked_bytes
 from uwcosim.fmi.binding import Binding
 from uwcosim.fmi.varmap import VariableMap
 
@@ -62,6 +63,7 @@ class ProxyAdapter:
                  substeps: int = 1, rtol: float = 1e-8, timeout_s: float = 10.0,
                  unzip_dir: str | Path | None = None) -> None:
         self.local = FMUAdapter(name, path, interface, solver, substeps, rtol)
+        self._max_unpacked_mb = max_unpacked_bytes() / MIB  # the worker checks it again
         self._scratch = None
         if unzip_dir is None:  # ours, not the worker's: a killed worker cannot remove it
             self._scratch = scratch.Scratch(self, "uwcosim_fmu_")
@@ -137,6 +139,7 @@ class ProxyAdapter:
         env = dict(os.environ)
         root = str(PACKAGE_DIR.parent)  # the worker imports this very package
         env["PYTHONPATH"] = os.pathsep.join([root, *filter(None, [env.get("PYTHONPATH")])])
+        env[MAX_UNPACKED_ENV] = repr(self._max_unpacked_mb)  # e.g. run.fmu_max_unpacked_mb
         try:
             self._proc = subprocess.Popen(
                 [sys.executable, "-m", "uwcosim.fmi.proxy", str(req_r), str(resp_w),

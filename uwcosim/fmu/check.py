@@ -116,7 +116,7 @@ def me_solver_lines(path: Path, md, timeout_s: float, report: CheckReport) -> No
         return
     ex = md.defaultExperiment
     t_stop = float(ex.stopTime) if ex is not None and ex.stopTime else 10.0
-    ad = ProxyAdapter("probe", path, "me", "rk4", 1, 1e-8, timeout_s)
+    ad = ProxyAdapter(Path(path).stem, path, "me", "rk4", 1, 1e-8, timeout_s)  # its name
     try:
         ad.instantiate({}, {}, 0.0, t_stop)
         used = ad.solver_used
@@ -186,7 +186,7 @@ def smoke_run(path: Path, entries: dict, role: str, interface: str, duration: fl
               step: float, timeout_s: float, report: CheckReport,
               where: tuple[str, str] = ("", "")) -> None:
     """Run the FMU for ``duration`` s with constant inputs; add lines/problems to ``report``."""
-    ad = ProxyAdapter("check", path, interface, "rk4", 4, 1e-8, timeout_s)
+    ad = ProxyAdapter(Path(path).stem, path, interface, "rk4", 4, 1e-8, timeout_s)
     try:
         if entries:
             ad.use_map(entries, role, *where)

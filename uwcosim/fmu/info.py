@@ -64,7 +64,7 @@ def fmu_info(path: str | Path) -> str:
              f"  model name        {md.modelName}"]
     if md.description:
         lines.append(f"  description       {md.description}")
-    lines.append(f"  GUID / token      {md.guid}")
+    lines.append(f"  GUID / token      {md.guid or '(none: FMI 2.0 and 3.0 require one)'}")
     if md.generationTool:
         lines.append(f"  generation tool   {md.generationTool}")
     ifaces = [(name, i) for name, i in (("CoSimulation", md.coSimulation),

@@ -58,6 +58,7 @@ from uwcosim.core import scratch
 from uwcosim.core.errors import AlgebraicLoopError, FMUError, ScenarioError, UwcosimError
 from uwcosim.fmi import vartypes
 from uwcosim.fmi.adapter import FMUAdapter
+from uwcosim.fmi.archive import unpacked_limit
 from uwcosim.fmi.proxy import ProxyAdapter
 from uwcosim.fmi.varmap import ROLES, fmu_unit, load_entries
 from uwcosim.master.algorithms import Unit, build_unit, jacobi_keeps, plan, start_value
@@ -267,13 +268,14 @@ class Master(SystemChecks):
         """The adapter of FMU ``name``: in this process, or in a worker when ``timeout_s``."""
         path = self.system.resolve(f.path)
         unzip = str(Path(self.unzip_root) / name)
-        try:
-            if f.timeout_s is not None and not self.check_only:  # checks call no FMU function
-                ad = ProxyAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol,
-                                  f.timeout_s, unzip_dir=unzip)
-            else:
-                ad = FMUAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol,
-                                unzip_dir=unzip)
+        try:  # run.fmu_max_unpacked_mb: the limit of the archive's unpacked size
+            with unpacked_limit(self.system.fmu_max_unpacked_mb):
+                if f.timeout_s is not None and not self.check_only:  # checks call no FMU
+                    ad = ProxyAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol,
+                                      f.timeout_s, unzip_dir=unzip)
+                else:
+                    ad = FMUAdapter(name, path, f.interface, f.solver, f.substeps, f.rtol,
+                                    unzip_dir=unzip)
         except FMUError as exc:  # missing, corrupt, another platform: say which key
             raise FMUError(f"{exc} [{self._where(f'fmus.{name}.path')}]") from None
         self.adapters[name] = ad  # closed with the others if what follows is refused

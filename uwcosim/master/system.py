@@ -256,6 +256,9 @@ class System:
     base_dir: Path | None = None
     #: prefix of error messages (the scenario file)
     where: str = "system"
+    #: the limit (MiB) of an FMU archive's unpacked size (None: the environment's or 512;
+    #: :func:`uwcosim.fmi.archive.unpacked_limit`)
+    fmu_max_unpacked_mb: float | None = None
 
     def resolve(self, path: str | Path) -> Path:
         p = Path(path)

@@ -3,10 +3,10 @@
 :mod:`uwcosim.core.supervise` runs ``uwcosim run`` in a child process; when an FMU ends that
 process (``exit``, ``abort``, a segmentation fault: see :class:`~uwcosim.core.supervise.Death`),
 :func:`finish_dead_run` does what the run would have done on a failure: the log is rewritten
-from its journal into a normal ``log.parquet`` (every finished row group, as after ``kill -9``;
-:func:`uwcosim.runlog.recover_log`), ``simulation.json`` says ``failed`` with the one-line
-error, and ``summary.json`` is evaluated from those files (metrics of what was logged). A run
-that died before its first row group has no log: the writer's empty stubs are removed.
+from its journal and tail into a normal ``log.parquet`` (every row up to the crash, as after
+``kill -9``: :func:`uwcosim.runlog.recover_log`), ``simulation.json`` says ``failed`` with the
+one-line error, and ``summary.json`` is evaluated from those files (metrics of what was
+logged). A run that died before its first row has no log: the writer's empty stubs are removed.
 """
 
 from __future__ import annotations
@@ -18,8 +18,9 @@ import numpy as np
 from uwcosim.core.errors import UwcosimError
 from uwcosim.evaluation.summary import evaluate
 from uwcosim.runlog import read_log, recover_log
-from uwcosim.runlog.parquet import journal_path
+from uwcosim.runlog.parquet import journal_path, unfinished
 from uwcosim.runlog.rundir import LOG_FILE, SIMULATION_FILE, SUMMARY_FILE, write_json
+from uwcosim.runlog.tail import tail_path
 
 
 def finish_dead_run(out_dir: str | Path, message: str, status: str = "failed") -> str:
@@ -29,12 +30,12 @@ def finish_dead_run(out_dir: str | Path, message: str, status: str = "failed") -
     log = out_dir / LOG_FILE
     cols, meta = {}, {}
     try:
-        if journal_path(log).is_file():
+        if unfinished(log):  # the journal's row groups, then the tail's rows
             recover_log(log)
         if log.is_file():
             cols, meta = read_log(log)
     except (UwcosimError, OSError):  # the journal has no schema yet: nothing was logged
-        for stub in (journal_path(log), log):  # what the writer had opened: unreadable
+        for stub in (journal_path(log), tail_path(log), log):  # opened by the writer
             stub.unlink(missing_ok=True)
     t = cols.get("time", np.zeros(0))
     if t.size:

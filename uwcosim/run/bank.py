@@ -169,8 +169,16 @@ class EstimatorBank:
         for plan in self.plans:
             std = plan.initial_std if plan.initial_std is not None else std0
             key = f"{self.where}: key 'estimators.{plan.name}'"
+            with np.errstate(over="ignore"):  # a std above 1.3e154: refused in one line
+                var = std**2
+            if not np.all(np.isfinite(var)):
+                name = f"estimators.{plan.name}.initial_std" if plan.initial_std is not None \
+                    else "estimation.initial_std"
+                raise ScenarioError(f"{self.where}: key '{name}': {std[~np.isfinite(var)][0]:g} "
+                                    f"squared is not a finite variance (float64 holds "
+                                    f"standard deviations up to about 1.3e154)")
             try:
-                est = build(plan.type, model, x_true0 + err0, np.diag(std**2), plan.settings,
+                est = build(plan.type, model, x_true0 + err0, np.diag(var), plan.settings,
                             rng=stream(self.seed, f"estimator:{plan.name}"))
             except (TypeError, ValueError) as exc:  # what needs the model (names, memory)
                 raise ScenarioError(f"{key}: {exc}") from None

@@ -34,7 +34,7 @@ import numpy as np
 from uwcosim.core.errors import ScenarioError, UwcosimError
 from uwcosim.core.plugins import describe_error
 from uwcosim.filters.base import build
-from uwcosim.fmi.archive import open_archive
+from uwcosim.fmi.archive import open_archive, unpacked_limit
 from uwcosim.master.master import Master
 from uwcosim.models.terrain import Bathymetry
 from uwcosim.run.factory import build_model, scenario_map
@@ -123,7 +123,8 @@ def start_position_problem(loaded: LoadedScenario, bathy: Bathymetry | None) -> 
         value = f.start.get(var)
         if value is None:
             try:
-                md = open_archive(loaded.resolve(f.path))
+                with unpacked_limit(spec.run.fmu_max_unpacked_mb):
+                    md = open_archive(loaded.resolve(f.path))
             except UwcosimError:
                 return None
             value = next((v.start for v in md.modelVariables if v.name == var), None)

@@ -12,8 +12,10 @@ match nothing (with the names nearest to each, for the one-line error).
 Row ``k`` is the bus at step ``k`` (:meth:`LogRecorder.on_step`) joined with the estimates of
 step ``k`` (:meth:`LogRecorder.estimates`, which the estimator bank calls when it has filtered
 the block the step belongs to): rows are paired by their step index and written in order as
-soon as both halves are there. :meth:`LogRecorder.flush` writes what still waits at the end of
-a run (with NaN estimates where the bank has none). Columns computed from a row (a
+soon as both halves are there; a row waiting for its estimates is staged in the logger's tail
+file (:meth:`~uwcosim.runlog.RunLogger.stage`: kept if the process dies).
+:meth:`LogRecorder.flush` writes what still waits at the end of a run (with NaN estimates where
+the bank has none). Columns computed from a row (a
 georeferenced run's latitude/longitude) are filled by the ``derive`` function given.
 """
 
@@ -143,7 +145,7 @@ class LogRecorder:
     def on_step(self, k: int, view: StepView) -> None:
         """Record row ``k``: time, signals and (with estimators) the step's measurement."""
         lay = self.layout
-        row = np.empty(lay.width)
+        row = np.full(lay.width, np.nan)  # NaN where it waits for its estimates
         row[0] = view.t
         row[lay.signal_part] = view.signals(self.sig)
         exact = self._exact(view)
@@ -153,7 +155,9 @@ class LogRecorder:
             return
         meas = view.measurement()
         row[lay.measurement_part] = meas.z
-        self._rows[k] = (row, [bool(r) for r in meas.received], exact)
+        received = [bool(r) for r in meas.received]
+        self.logger.stage(k, row, received)  # kept if the process dies before its estimates
+        self._rows[k] = (row, received, exact)
         self._drain()
 
     def estimates(self, k: int, values: np.ndarray, diverged: list[bool]) -> None:

@@ -48,6 +48,7 @@ import numpy as np
 
 from uwcosim.core.errors import OutputError, RunInterrupted, UwcosimError
 from uwcosim.core.jit import ENABLED as JIT_ENABLED
+from uwcosim.core.numwarn import NumericalWarnings
 from uwcosim.core.runguard import run_guard, signal_name
 from uwcosim.core.version import __version__
 from uwcosim.evaluation.summary import evaluate as evaluate_run
@@ -332,9 +333,13 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
             return message
         return f"{message} (log up to t={last_time():g} kept in {log_path})"
 
+    numerics = NumericalWarnings()  # numpy's RuntimeWarnings: one line each, recorded
+
     def finish(status: str, error: str) -> None:
         """``simulation.json`` and (with ``evaluate``) ``summary.json``."""
         record = simulation_record(master, bank, loaded, status, error)
+        if numerics.entries():
+            record["warnings"] = numerics.entries()
         write_json(out_dir / SIMULATION_FILE, record)
         if evaluate:
             try:
@@ -368,7 +373,7 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
             write_json(out_dir / SUMMARY_FILE, essentials)
         return message
 
-    with run_guard(spec.run.fmu_timeout_s) as guard:
+    with run_guard(spec.run.fmu_timeout_s) as guard, numerics:
         guard.master, guard.finalize = master, finalize
         try:
             truth: list[str] = []
@@ -420,7 +425,8 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
             # field metadata "unit" (a replay's recording declares none)
             units = layout_units(layout, getattr(master, "signal_unit", lambda _: None), truth)
             logger = RunLogger(log_path, layout.columns, layout.flags, meta,
-                               spec.log.chunk_steps, dtypes, units)
+                               spec.log.chunk_steps, dtypes, units,
+                               pending=spec.run.filter_block)
             recorder = LogRecorder(
                 layout, logger, [slots[c] for c in signals],
                 [slots[c] for c in logger.exact_columns], master.exact,

@@ -10,7 +10,10 @@ A process killed outright (``kill -9``, power loss of the process) never writes 
 footer, so ``log.parquet`` is then unreadable. Each row group is therefore also appended to a
 side file ``log.parquet.journal`` (an Arrow IPC stream, written unbuffered when the row group
 is): :func:`read_log` falls back to it and returns every finished row group, and
-:func:`recover_log` rewrites a proper ``log.parquet`` from it. A clean close removes it.
+:func:`recover_log` rewrites a proper ``log.parquet`` from it. The rows not in a row group yet
+(and those waiting for their filter block) are in a third file, ``log.parquet.tail``
+(:mod:`uwcosim.runlog.tail`, memory-mapped): both read it after the journal, so a process an
+FMU ends keeps its rows up to the crash. A clean close removes both side files.
 
 The file's key-value metadata ``uwcosim`` holds the scenario text and hash, the seed, package
 versions and the FMUs' sha256; nothing time-of-day dependent is stored, so the same scenario
@@ -31,6 +34,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from uwcosim.core.errors import UwcosimError
+from uwcosim.runlog.tail import Tail, tail_path, tail_table
 from uwcosim.runlog.units import units_of, with_units
 
 if TYPE_CHECKING:
@@ -64,12 +68,15 @@ class RunLogger:
     :data:`EXACT` come through ``append(..., exact=[...])`` in column order, the others through
     the float64 row (exact for int32 and smaller, bool and float32). ``units``: the unit of
     each column that has one, written as its field metadata ``unit``
-    (:mod:`uwcosim.runlog.units`).
+    (:mod:`uwcosim.runlog.units`). ``pending``: how many rows may be recorded
+    (:meth:`stage`) before the logger gets them (a filter block), for the size of the tail
+    file (:mod:`uwcosim.runlog.tail`); ``tail=False``: none (the benchmark of its cost).
     """
 
     def __init__(self, path: Path, columns: list[str], bool_columns: list[str],
                  metadata: dict, chunk: int = 1000, dtypes: dict | None = None,
-                 units: dict[str, str] | None = None) -> None:
+                 units: dict[str, str] | None = None, pending: int = 0,
+                 tail: bool = True) -> None:
         self.path = Path(path)
         self.columns = ["time", *columns]
         self.bool_columns = list(bool_columns)
@@ -98,6 +105,19 @@ class RunLogger:
         except OSError as exc:
             raise UwcosimError(f"{self.path}: cannot write the run log ({exc.strerror or exc})"
                                ) from None
+        self._tail = None
+        try:  # best effort: a disk without room for it still gets the log
+            if tail:
+                self._tail = Tail(tail_path(self.path), self.schema, len(self.columns),
+                                  len(self.bool_columns), self.chunk + int(pending) + 1)
+        except OSError:
+            pass
+
+    def stage(self, k: int, values: np.ndarray, flags: Sequence[bool]) -> None:
+        """Row ``k`` as recorded so far (``values`` NaN where it waits for estimates; the
+        first ``flags``): kept in the tail file only, until :meth:`append` gets it whole."""
+        if self._tail is not None:
+            self._tail.put(k, values, flags)
 
     def append(self, values: np.ndarray, flags: np.ndarray, exact: Sequence = ()) -> None:
         """Append one row: ``values`` in ``columns`` order (time first), ``flags`` booleans,
@@ -107,6 +127,8 @@ class RunLogger:
                 return
             self._f[self._n] = values
             self._b[self._n] = flags
+            if self._tail is not None:
+                self._tail.put(self.rows_written + self._n, values, flags)
             for store, v in zip(self._e, exact):
                 store.append(v)
             self._n += 1
@@ -153,6 +175,9 @@ class RunLogger:
                 self._journal.close()
                 self._journal_file.close()
                 os.unlink(self.journal_path)
+                if self._tail is not None:
+                    self._tail.close()
+                    self._tail = None
 
 
 def numpy_column(column: pa.ChunkedArray) -> np.ndarray:
@@ -208,18 +233,46 @@ def _read_table(path: Path) -> pa.Table:
         with pq.ParquetFile(path) as f:
             return f.read()
     except Exception as exc:  # noqa: BLE001 - pyarrow raises several types for bad files
-        journal = journal_path(path)
-        if journal.is_file():  # the writer was killed before it wrote the footer
-            return read_journal(journal)
+        if unfinished(path):  # the writer was killed before it wrote the footer
+            return read_unfinished(path)
         raise UwcosimError(f"{path}: not a readable Parquet run log ({exc})") from None
 
 
-def recover_log(path: str | Path) -> int:
-    """Rewrite ``path`` from its journal after the writer was killed; returns the rows kept."""
+def unfinished(path: str | Path) -> bool:
+    """True when the log ``path`` has a journal or a tail file (its writer did not close it)."""
+    return journal_path(path).is_file() or tail_path(path).is_file()
+
+
+def read_unfinished(path: str | Path) -> pa.Table:
+    """The rows of a log whose writer did not close it: every finished row group (the
+    journal), then the tail file's rows that follow (:mod:`uwcosim.runlog.tail`)."""
     path = Path(path)
-    table = read_journal(journal_path(path))
+    journal, tail = journal_path(path), tail_path(path)
+    table = None
+    try:
+        table = read_journal(journal)
+    except (UwcosimError, OSError):
+        if not tail.is_file():
+            raise
+    try:
+        _, rows = tail_table(tail, table.num_rows if table is not None else 0)
+    except (OSError, ValueError, pa.ArrowException):  # none, or not a tail: the journal's
+        rows = None
+    if table is None:
+        if rows is None:
+            raise UwcosimError(f"{journal}: journal has no complete schema")
+        return rows
+    return table if rows is None else pa.concat_tables([table, rows.cast(table.schema)])
+
+
+def recover_log(path: str | Path) -> int:
+    """Rewrite ``path`` from its journal and tail after the writer was killed; returns the
+    rows kept."""
+    path = Path(path)
+    table = read_unfinished(path)
     pq.write_table(table, path, compression="zstd")
-    os.unlink(journal_path(path))
+    for side in (journal_path(path), tail_path(path)):
+        side.unlink(missing_ok=True)
     return table.num_rows
 
 

@@ -24,8 +24,8 @@ SUMMARY_FILE = "summary.json"
 MAP_FILE = "map.bin"
 DENSITIES_FILE = "densities.npz"
 #: files a run writes into its directory (``--force`` clears these, and the figures)
-RUN_OUTPUTS = (LOG_FILE, LOG_FILE + ".journal", SIMULATION_FILE, SUMMARY_FILE, "report.md",
-               "report.html", MAP_FILE, DENSITIES_FILE)
+RUN_OUTPUTS = (LOG_FILE, LOG_FILE + ".journal", LOG_FILE + ".tail", SIMULATION_FILE,
+               SUMMARY_FILE, "report.md", "report.html", MAP_FILE, DENSITIES_FILE)
 
 
 def write_json(path: Path, data: dict) -> None:

@@ -9,9 +9,12 @@ Relative paths written in a scenario are relative to the scenario file; relative
 from __future__ import annotations
 
 from dataclasses import replace
+from math import inf
 from pathlib import Path
 
+from uwcosim.core.errors import ScenarioError
 from uwcosim.core.tomlfile import read_toml
+from uwcosim.fmi.archive import unpacked_limit
 from uwcosim.scenario.loaded import LoadedScenario
 from uwcosim.scenario.overrides import absolute_path_overrides, apply_override, parse_overrides
 from uwcosim.scenario.ssp.convert import load_ssp, merge_system
@@ -37,9 +40,23 @@ def read_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
         apply_override(data, keys, value, where)
     ssp = None
     if isinstance(data.get("system"), dict) and "ssp" in data["system"]:
-        ssp = merge_system(data, path, where)
+        with unpacked_limit(_max_unpacked_mb(data, where)):
+            ssp = merge_system(data, path, where)
     return data, LoadedScenario(spec=None, path=path.resolve(), text=text,
                                 overrides=tuple(overrides), ssp=ssp)
+
+
+def _max_unpacked_mb(data: dict, where: str) -> float | None:
+    """``run.fmu_max_unpacked_mb`` before the scenario is validated (the SSP is read first),
+    checked as the schema checks it."""
+    run = data.get("run")
+    value = run.get("fmu_max_unpacked_mb") if isinstance(run, dict) else None
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < inf:
+        raise ScenarioError(f"{where}: key 'run.fmu_max_unpacked_mb': expected a positive "
+                            f"number of MiB (got {value!r})")
+    return float(value)
 
 
 def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = (),

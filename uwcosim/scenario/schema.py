@@ -75,6 +75,9 @@ class RunSpec(Strict):
     stop_on_terminate: Literal["stop", "error"] = "stop"
     #: run-wide watchdog (s): an FMU call lasting longer ends the run (failed, log kept)
     fmu_timeout_s: PositiveFloat | None = None
+    #: the limit (MiB) of an FMU's or the system.ssp archive's unpacked size (a zip bomb is
+    #: refused before it is inflated); default: UWCOSIM_FMU_MAX_UNPACKED_MB, else 512
+    fmu_max_unpacked_mb: PositiveFloat | None = None
     #: the master algorithm: "gauss-seidel" (dependency order) or "jacobi" (every FMU from
     #: the values of the previous communication point)
     algorithm: Literal["gauss-seidel", "jacobi"] = "gauss-seidel"

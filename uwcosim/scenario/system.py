@@ -56,6 +56,7 @@ def to_system(loaded: LoadedScenario) -> System:
         algebraic_loops=spec.run.algebraic_loops, loop_tolerance=spec.run.loop_tolerance,
         loop_max_iterations=spec.run.loop_max_iterations, name=spec.name,
         base_dir=loaded.base_dir, where=str(loaded.path),
+        fmu_max_unpacked_mb=spec.run.fmu_max_unpacked_mb,
     )
 
 

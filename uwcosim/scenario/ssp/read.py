@@ -26,7 +26,7 @@ from pathlib import Path, PurePosixPath
 from urllib.parse import unquote
 
 from uwcosim.core.errors import FMUError, ScenarioError
-from uwcosim.fmi.archive import open_description
+from uwcosim.fmi.archive import archive_size_problem, open_description
 from uwcosim.fmi.varmap import UNITS, canonical_unit, fmu_unit
 from uwcosim.scenario.ssp.params import ParameterBinder
 from uwcosim.scenario.ssp.tree import Component, Connector, System, read_document
@@ -125,6 +125,9 @@ class FlatReader:
         except (OSError, zipfile.BadZipFile) as exc:
             raise self.fail(f"not an SSP archive (a zip file): {exc}") from None
         with zf:
+            too_big = archive_size_problem(self.path, zf, "SSP archive")
+            if too_big:  # before a member is read (a zip bomb)
+                raise FMUError(too_big)
             self.members = set(zf.namelist())
             doc = read_document(zf, self.fail)
             for u in doc.units.values():

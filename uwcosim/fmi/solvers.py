@@ -35,6 +35,7 @@ import ctypes
 import functools
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -42,6 +43,9 @@ from uwcosim.core.errors import FMUError
 from uwcosim.core.integrators import rk4
 from uwcosim.fmi.binding import Binding
 from uwcosim.fmi.instance import Instance
+
+if TYPE_CHECKING:  # loaded on first use (cvode_class)
+    from fmpy.sundials import CVodeSolver
 
 #: event iterations allowed before the FMU is declared not converging
 MAX_EVENT_ITERATIONS = 1000
@@ -135,7 +139,7 @@ def cvode_class():
     return CVode
 
 
-def cvode_step(cvode, time: float, t_next: float, what: str) -> tuple[bool, float]:
+def cvode_step(cvode: CVodeSolver, time: float, t_next: float, what: str) -> tuple[bool, float]:
     """One call of fmpy's CVode solver from ``time`` towards ``t_next``: ``(state event,
     time reached)``. A failure is an FMUError naming ``what`` (the FMU, or the FMUs integrated
     together) and why: the FMUError a callback raised, or CVode's own message."""

@@ -137,6 +137,30 @@ def vb_update(
     return VBResult(xi, Pi, t, T, uu, UU, P_hat, R_hat, K, S, A, B, y, done, cho)
 
 
+def partial_iw_update(U: np.ndarray, idx: np.ndarray, U_oo: np.ndarray) -> np.ndarray:
+    """``U`` with its observed block ``U[idx, idx]`` replaced by ``U_oo``, positive definite.
+
+    The congruence ``U' = M U M'`` with ``M = I`` except ``M_oo = L' L^-1`` (``L``, ``L'`` the
+    Cholesky factors of the old and the new observed block): ``U'_oo = L' L'^T = U_oo``, the
+    unobserved block ``U'_uu = U_uu`` and its Schur complement
+    ``U_uu - U_uo U_oo^-1 U_ou`` are unchanged, the cross terms ``U'_ou = L' L^-1 U_ou`` keep
+    the whitened cross term ``L^-1 U_ou``. ``M`` is invertible, so ``U'`` is positive definite
+    when ``U`` and ``U_oo`` are. With a block-diagonal ``U`` (no cross terms) this is only the
+    block's replacement.
+    """
+    o = np.ix_(idx, idx)
+    L_old = np.linalg.cholesky(U[o])  # U_oo = L L'
+    L_new = np.linalg.cholesky(symmetrize(U_oo))  # U'_oo = L' L''
+    M_oo = L_new @ np.linalg.solve(L_old, np.eye(idx.size))  # M_oo = L' L^-1
+    rest = np.setdiff1d(np.arange(U.shape[0]), idx)
+    out = U.copy()
+    out[o] = U_oo
+    cross = M_oo @ U[np.ix_(idx, rest)]  # U'_ou = M_oo U_ou
+    out[np.ix_(idx, rest)] = cross
+    out[np.ix_(rest, idx)] = cross.T
+    return symmetrize(out)
+
+
 @register("vbakf")
 class VariationalBayesAKF(FilterBase):
     """VB adaptive Kalman filter with inaccurate ``Q`` and ``R`` (Huang et al. 2018).
@@ -206,11 +230,9 @@ class VariationalBayesAKF(FilterBase):
         self.x, self.P = res.x, res.P
         if full:
             self.u, self.U = res.u, res.U
-        else:  # keep u; the block's mean becomes the subset posterior mean
+        else:  # keep u; the block's mean becomes the subset posterior mean, U stays PD
             c = (self.u - m - 1.0) / (self.u - m)
-            U = self.U.copy()
-            U[np.ix_(idx, idx)] = c * res.U
-            self.U = symmetrize(U)
+            self.U = partial_iw_update(self.U, idx, c * res.U)
         self.last = res
         self.diagnostics["nis"] = nis(y, res.cho)
         self.diagnostics["nis_dof"] = float(p)

@@ -28,9 +28,28 @@ accumulate). The loop stops after ``iterations`` passes or when the state moves 
 Nonlinear ``h``: EKF-style, ``H`` is the Jacobian at the predicted mean and the residual of
 iterate ``x(i)`` is ``z - h(x) - H (x(i) - x)`` (for linear ``h`` this is ``z - H x(i)``).
 
-Missing components: the update runs on the available block with its marginal prior
-``IW(u - (m - p), U_ss)``; the posterior block mean is written back with ``u`` unchanged
-(one inverse-Wishart has one dof for all components, so a partial update cannot raise it).
+Missing components (sensors at different rates, lost components; neither Huang nor seed 001
+treats a partly observed ``z``, so this rule is ours): with ``p`` of the ``m`` components
+observed (block ``o``), the likelihood involves only ``R_oo``. The marginal of ``R_oo`` under
+``IW(u, U)`` is ``IW(u - (m - p), U_oo)``; the update runs on it (``U_oo + B`` with dof
+``+ 1``); the unobserved components got no data. One inverse-Wishart has one dof for all
+components, so the posterior is projected back on one: ``u`` is kept and the observed block is
+set to ``c (U_oo + B)``, ``c = (u - m - 1) / (u - m)``, so that its mean ``E[R_oo]`` is the
+block's posterior mean (the block's spread is overstated by one dof, a conservative
+projection); :func:`partial_iw_update` writes this block back by a congruence that keeps the
+unobserved block ``U_uu`` (its marginal, hence the mean of its noise) and its Schur complement
+``U_uu - U_uo U_oo^-1 U_ou``, and carries the cross terms along with the observed block's
+square root, so ``U`` stays positive definite. Keeping ``U_uu`` rather than the regression
+``U_oo^-1 U_ou`` is our choice for independent sensors (as the scenarios declare them): there
+the cross terms of ``U`` are only sampling noise of the full updates' ``e e'`` and must not
+move another sensor's noise level. (The old write-back replaced the block and kept the cross
+terms as they were: a residual smaller than expected shrinks the block, ``c (U_oo + B) <
+U_oo``, the cross terms of the full updates then no longer fit, the Schur complement of the
+rest goes negative, and the next full update gave an indefinite ``P``.) With all components
+observed the update is Huang's, bit for bit as before; with a block-diagonal ``U`` the
+write-back is the old one, bit for bit. The other projection, ``u + 1`` with the
+unobserved block's mean kept, claims one sample per step for a sensor that reports less often
+and was much worse on the current-navigation example (docs/your_own_model.md).
 
 QIVBF (seed 001): a lost component is first extrapolated by the three-point Lagrange polynomial
 through its last three received values (eq. 28, :class:`~uwcosim.filters.policies.Extrapolate`,

@@ -79,6 +79,7 @@ import numpy as np
 from pydantic import Field, StrictBool, StrictFloat, StrictInt
 
 from uwcosim.filters.base import FilterBase, register
+from uwcosim.filters.gating import GateProbability, gate, gate_field
 from uwcosim.filters.numerics import kalman_gain, linearize, nis, symmetrize
 from uwcosim.filters.policies import Extrapolate
 from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
@@ -198,6 +199,7 @@ class VariationalBayesAKF(FilterBase):
         u0: StrictFloat | None = Field(None, description="initial dof of R (default m + 2; "
                                        "must exceed m + 1)")
         measurements: Measurements = measurements_field()
+        gate_probability: GateProbability = gate_field()  # filters.gating, with E[R]
 
     def __init__(self, model, x0, P0, **settings) -> None:
         super().__init__(model, x0, P0, **settings)
@@ -216,6 +218,10 @@ class VariationalBayesAKF(FilterBase):
     def R_hat(self) -> np.ndarray:
         """``E[R] = U / (u - m - 1)``."""
         return self.U / (self.u - self.model.nz - 1.0)
+
+    def _gate_variances(self, idx: np.ndarray) -> np.ndarray:
+        """The gate's ``R_ii``: the current estimate ``E[R]``, not the nominal ``R``."""
+        return np.diag(self.R_hat)[idx]
 
     def predict(self, u, dt: float) -> None:
         self._begin_predict()
@@ -288,11 +294,32 @@ class ExtrapolatingVBAKF(VariationalBayesAKF):
 
     def update(self, z, mask=None) -> None:
         mask = self._use if mask is None else np.asarray(mask, dtype=bool) & self._use
+        rejected = 0
+        if self._gate_threshold is not None and z is not None:  # a gated value is a lost one
+            mask, rejected = self._gate_received(np.asarray(z, dtype=float), mask)
         z, mask = self.interpolator(self.t, z, mask)  # eq. (28) for the lost components
-        idx = self._begin_update(z, mask)
+        idx = self._begin_update(z, mask)  # gates the extrapolated values too
         self.diagnostics["extrapolated"] = float(self.interpolator.extrapolated)
+        if rejected:
+            self.diagnostics["gated"] = self.diagnostics.get("gated", 0.0) + rejected
         if idx is None:
             return
         filled = self.inflate_r and self.interpolator.extrapolated
         gain = self.interpolator.gain if filled else None
         self._vb(np.asarray(z, dtype=float), idx, gain)
+
+    def _gate_received(self, z: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, int]:
+        """``mask`` without the received components the gate rejects, and how many: they are
+        then lost, extrapolated like the others, and kept out of the extrapolation's history."""
+        received = (mask & np.isfinite(z)).nonzero()[0]
+        if received.size == 0:
+            return mask, 0
+        kept, rejected = gate(self.model, self.x, self.P, z, received, self._gate_threshold,
+                              self._gate_variances(received))
+        if rejected == 0:
+            return mask, 0
+        mask = mask.copy()
+        mask[received] = False
+        if kept is not None:
+            mask[kept] = True
+        return mask, rejected

@@ -168,3 +168,10 @@ def test_multirate_filter_is_consistent(settings):
         nees.append(e @ np.linalg.solve(est.P, e))
     low, high = stats.chi2.ppf([0.0005, 0.9995], n * runs) / runs
     assert low <= np.mean(nees) <= high, (np.mean(nees), low, high)
+
+
+def test_a_non_positive_definite_block_is_a_divergence():
+    from uwcosim.core.errors import FilterDivergence
+
+    with pytest.raises(FilterDivergence, match="U of R"):
+        partial_iw_update(np.eye(3), np.array([0, 1]), -np.eye(2))

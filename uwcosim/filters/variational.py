@@ -78,6 +78,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, StrictBool, StrictFloat, StrictInt
 
+from uwcosim.core.errors import FilterDivergence
 from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.gating import GateProbability, gate, gate_field
 from uwcosim.filters.numerics import kalman_gain, linearize, nis, symmetrize
@@ -166,11 +167,15 @@ def partial_iw_update(U: np.ndarray, idx: np.ndarray, U_oo: np.ndarray) -> np.nd
     ``U_uu - U_uo U_oo^-1 U_ou`` are unchanged, the cross terms ``U'_ou = L' L^-1 U_ou`` keep
     the whitened cross term ``L^-1 U_ou``. ``M`` is invertible, so ``U'`` is positive definite
     when ``U`` and ``U_oo`` are. With a block-diagonal ``U`` (no cross terms) this is only the
-    block's replacement.
+    block's replacement. A block that is not positive definite
+    raises :class:`~uwcosim.core.errors.FilterDivergence`.
     """
     o = np.ix_(idx, idx)
-    L_old = np.linalg.cholesky(U[o])  # U_oo = L L'
-    L_new = np.linalg.cholesky(symmetrize(U_oo))  # U'_oo = L' L''
+    try:
+        L_old = np.linalg.cholesky(U[o])  # U_oo = L L'
+        L_new = np.linalg.cholesky(symmetrize(U_oo))  # U'_oo = L' L''
+    except np.linalg.LinAlgError:
+        raise FilterDivergence("inverse-Wishart scale U of R not positive definite") from None
     M_oo = L_new @ np.linalg.solve(L_old, np.eye(idx.size))  # M_oo = L' L^-1
     rest = np.setdiff1d(np.arange(U.shape[0]), idx)
     out = U.copy()

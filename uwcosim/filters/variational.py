@@ -176,13 +176,11 @@ def partial_iw_update(U: np.ndarray, idx: np.ndarray, U_oo: np.ndarray) -> np.nd
         L_new = np.linalg.cholesky(symmetrize(U_oo))  # U'_oo = L' L''
     except np.linalg.LinAlgError:
         raise FilterDivergence("inverse-Wishart scale U of R not positive definite") from None
-    M_oo = L_new @ np.linalg.solve(L_old, np.eye(idx.size))  # M_oo = L' L^-1
-    rest = np.setdiff1d(np.arange(U.shape[0]), idx)
+    M_oo = np.linalg.solve(L_old.T, L_new.T).T  # M_oo = L' L^-1
     out = U.copy()
-    out[o] = U_oo
-    cross = M_oo @ U[np.ix_(idx, rest)]  # U'_ou = M_oo U_ou
-    out[np.ix_(idx, rest)] = cross
-    out[np.ix_(rest, idx)] = cross.T
+    out[idx] = M_oo @ U[idx]  # rows of M U
+    out[:, idx] = out[:, idx] @ M_oo.T  # columns of (M U) M': U'_uo = U_uo M_oo'
+    out[o] = U_oo  # = M_oo U_oo M_oo' up to round-off
     return symmetrize(out)
 
 

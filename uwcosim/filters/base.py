@@ -211,9 +211,14 @@ class FilterBase(Estimator):
         n = int(np.count_nonzero(ok))
         idx = self._all_idx if n == ok.size else ok.nonzero()[0] if n else None
         if idx is not None and self._gate_threshold is not None:  # filters.gating
-            idx, rejected = gate(self.model, self.x, self.P, z, idx, self._gate_threshold)
+            idx, rejected = gate(self.model, self.x, self.P, z, idx, self._gate_threshold,
+                                 self._gate_variances(idx))
             self.diagnostics["gated"] = float(rejected)
         return idx  # all components: the read-only _all_idx, the common case
+
+    def _gate_variances(self, idx: np.ndarray) -> np.ndarray | None:
+        """The noise variances the gate uses for components ``idx`` (None: the model's)."""
+        return None
 
     def _R(self, idx: np.ndarray) -> np.ndarray:
         """``R[idx, idx]`` (cached per set of components)."""

@@ -10,8 +10,9 @@ components that pass, as if the others were lost. Components are gated one by on
 outlier of the depth sounder does not take the DVL's velocities with it. Every Kalman-family
 filter (``kf``, ``ekf``, ``ukf``, ``ckf``, ``cukf``) gates on this linearized ``S`` at its
 prior mean (for a sigma-point filter it is the EKF's ``S``, not its own ``Pzz + R``: the gate
-is a test of the prior, evaluated before the update it guards). Off by default
-(``gate_probability`` unset): no filter's results change.
+is a test of the prior, evaluated before the update it guards); the variational-Bayes filters
+(``vbakf``, ``qivbf``) on ``S`` with their current estimate ``E[R]`` in place of ``R``. Off by
+default (``gate_probability`` unset): no filter's results change.
 """
 
 from __future__ import annotations
@@ -43,12 +44,16 @@ def gate_threshold(probability: float) -> float:
 
 
 def gate(model: StateSpaceModel, x: np.ndarray, P: np.ndarray, z: np.ndarray,
-         idx: np.ndarray, threshold: float) -> tuple[np.ndarray | None, int]:
+         idx: np.ndarray, threshold: float,
+         r: np.ndarray | None = None) -> tuple[np.ndarray | None, int]:
     """The components of ``idx`` that pass the gate (None if none) and how many were
-    rejected."""
+    rejected. ``r``: the noise variances ``R_ii`` of the components ``idx`` (default: the
+    model's; the VB filters pass their estimate ``E[R]``)."""
     H = np.asarray(model.H(x))[idx]
     y = np.asarray(z, dtype=float)[idx] - np.asarray(model.h(x))[idx]  # y = z - h(x)
-    S = np.einsum("ij,jk,ik->i", H, P, H) + np.diag(model.R)[idx]  # S_ii = (H P H')_ii + R_ii
+    if r is None:
+        r = np.diag(model.R)[idx]
+    S = np.einsum("ij,jk,ik->i", H, P, H) + r  # S_ii = (H P H')_ii + R_ii
     keep = y * y <= threshold * S  # d_i = y_i^2 / S_ii <= threshold
     n_rejected = int(idx.size - np.count_nonzero(keep))
     if n_rejected == 0:

@@ -28,9 +28,28 @@ accumulate). The loop stops after ``iterations`` passes or when the state moves 
 Nonlinear ``h``: EKF-style, ``H`` is the Jacobian at the predicted mean and the residual of
 iterate ``x(i)`` is ``z - h(x) - H (x(i) - x)`` (for linear ``h`` this is ``z - H x(i)``).
 
-Missing components: the update runs on the available block with its marginal prior
-``IW(u - (m - p), U_ss)``; the posterior block mean is written back with ``u`` unchanged
-(one inverse-Wishart has one dof for all components, so a partial update cannot raise it).
+Missing components (sensors at different rates, lost components; neither Huang nor seed 001
+treats a partly observed ``z``, so this rule is ours): with ``p`` of the ``m`` components
+observed (block ``o``), the likelihood involves only ``R_oo``. The marginal of ``R_oo`` under
+``IW(u, U)`` is ``IW(u - (m - p), U_oo)``; the update runs on it (``U_oo + B`` with dof
+``+ 1``); the unobserved components got no data. One inverse-Wishart has one dof for all
+components, so the posterior is projected back on one: ``u`` is kept and the observed block is
+set to ``c (U_oo + B)``, ``c = (u - m - 1) / (u - m)``, so that its mean ``E[R_oo]`` is the
+block's posterior mean (the block's spread is overstated by one dof, a conservative
+projection); :func:`partial_iw_update` writes this block back by a congruence that keeps the
+unobserved block ``U_uu`` (its marginal, hence the mean of its noise) and its Schur complement
+``U_uu - U_uo U_oo^-1 U_ou``, and carries the cross terms along with the observed block's
+square root, so ``U`` stays positive definite. Keeping ``U_uu`` rather than the regression
+``U_oo^-1 U_ou`` is our choice for independent sensors (as the scenarios declare them): there
+the cross terms of ``U`` are only sampling noise of the full updates' ``e e'`` and must not
+move another sensor's noise level. (The old write-back replaced the block and kept the cross
+terms as they were: a residual smaller than expected shrinks the block, ``c (U_oo + B) <
+U_oo``, the cross terms of the full updates then no longer fit, the Schur complement of the
+rest goes negative, and the next full update gave an indefinite ``P``.) With all components
+observed the update is Huang's, bit for bit as before; with a block-diagonal ``U`` the
+write-back is the old one, bit for bit. The other projection, ``u + 1`` with the
+unobserved block's mean kept, claims one sample per step for a sensor that reports less often
+and was much worse on the current-navigation example (docs/your_own_model.md).
 
 QIVBF (seed 001): a lost component is first extrapolated by the three-point Lagrange polynomial
 through its last three received values (eq. 28, :class:`~uwcosim.filters.policies.Extrapolate`,
@@ -59,7 +78,9 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, StrictBool, StrictFloat, StrictInt
 
+from uwcosim.core.errors import FilterDivergence
 from uwcosim.filters.base import FilterBase, register
+from uwcosim.filters.gating import GateProbability, gate, gate_field
 from uwcosim.filters.numerics import kalman_gain, linearize, nis, symmetrize
 from uwcosim.filters.policies import Extrapolate
 from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
@@ -137,6 +158,32 @@ def vb_update(
     return VBResult(xi, Pi, t, T, uu, UU, P_hat, R_hat, K, S, A, B, y, done, cho)
 
 
+def partial_iw_update(U: np.ndarray, idx: np.ndarray, U_oo: np.ndarray) -> np.ndarray:
+    """``U`` with its observed block ``U[idx, idx]`` replaced by ``U_oo``, positive definite.
+
+    The congruence ``U' = M U M'`` with ``M = I`` except ``M_oo = L' L^-1`` (``L``, ``L'`` the
+    Cholesky factors of the old and the new observed block): ``U'_oo = L' L'^T = U_oo``, the
+    unobserved block ``U'_uu = U_uu`` and its Schur complement
+    ``U_uu - U_uo U_oo^-1 U_ou`` are unchanged, the cross terms ``U'_ou = L' L^-1 U_ou`` keep
+    the whitened cross term ``L^-1 U_ou``. ``M`` is invertible, so ``U'`` is positive definite
+    when ``U`` and ``U_oo`` are. With a block-diagonal ``U`` (no cross terms) this is only the
+    block's replacement. A block that is not positive definite
+    raises :class:`~uwcosim.core.errors.FilterDivergence`.
+    """
+    o = np.ix_(idx, idx)
+    try:
+        L_old = np.linalg.cholesky(U[o])  # U_oo = L L'
+        L_new = np.linalg.cholesky(symmetrize(U_oo))  # U'_oo = L' L''
+    except np.linalg.LinAlgError:
+        raise FilterDivergence("inverse-Wishart scale U of R not positive definite") from None
+    M_oo = np.linalg.solve(L_old.T, L_new.T).T  # M_oo = L' L^-1
+    out = U.copy()
+    out[idx] = M_oo @ U[idx]  # rows of M U
+    out[:, idx] = out[:, idx] @ M_oo.T  # columns of (M U) M': U'_uo = U_uo M_oo'
+    out[o] = U_oo  # = M_oo U_oo M_oo' up to round-off
+    return symmetrize(out)
+
+
 @register("vbakf")
 class VariationalBayesAKF(FilterBase):
     """VB adaptive Kalman filter with inaccurate ``Q`` and ``R`` (Huang et al. 2018).
@@ -155,6 +202,7 @@ class VariationalBayesAKF(FilterBase):
         u0: StrictFloat | None = Field(None, description="initial dof of R (default m + 2; "
                                        "must exceed m + 1)")
         measurements: Measurements = measurements_field()
+        gate_probability: GateProbability = gate_field()  # filters.gating, with E[R]
 
     def __init__(self, model, x0, P0, **settings) -> None:
         super().__init__(model, x0, P0, **settings)
@@ -173,6 +221,10 @@ class VariationalBayesAKF(FilterBase):
     def R_hat(self) -> np.ndarray:
         """``E[R] = U / (u - m - 1)``."""
         return self.U / (self.u - self.model.nz - 1.0)
+
+    def _gate_variances(self, idx: np.ndarray) -> np.ndarray:
+        """The gate's ``R_ii``: the current estimate ``E[R]``, not the nominal ``R``."""
+        return np.diag(self.R_hat)[idx]
 
     def predict(self, u, dt: float) -> None:
         self._begin_predict()
@@ -206,11 +258,9 @@ class VariationalBayesAKF(FilterBase):
         self.x, self.P = res.x, res.P
         if full:
             self.u, self.U = res.u, res.U
-        else:  # keep u; the block's mean becomes the subset posterior mean
+        else:  # keep u; the block's mean becomes the subset posterior mean, U stays PD
             c = (self.u - m - 1.0) / (self.u - m)
-            U = self.U.copy()
-            U[np.ix_(idx, idx)] = c * res.U
-            self.U = symmetrize(U)
+            self.U = partial_iw_update(self.U, idx, c * res.U)
         self.last = res
         self.diagnostics["nis"] = nis(y, res.cho)
         self.diagnostics["nis_dof"] = float(p)
@@ -247,11 +297,32 @@ class ExtrapolatingVBAKF(VariationalBayesAKF):
 
     def update(self, z, mask=None) -> None:
         mask = self._use if mask is None else np.asarray(mask, dtype=bool) & self._use
+        rejected = 0
+        if self._gate_threshold is not None and z is not None:  # a gated value is a lost one
+            mask, rejected = self._gate_received(np.asarray(z, dtype=float), mask)
         z, mask = self.interpolator(self.t, z, mask)  # eq. (28) for the lost components
-        idx = self._begin_update(z, mask)
+        idx = self._begin_update(z, mask)  # gates the extrapolated values too
         self.diagnostics["extrapolated"] = float(self.interpolator.extrapolated)
+        if rejected:
+            self.diagnostics["gated"] = self.diagnostics.get("gated", 0.0) + rejected
         if idx is None:
             return
         filled = self.inflate_r and self.interpolator.extrapolated
         gain = self.interpolator.gain if filled else None
         self._vb(np.asarray(z, dtype=float), idx, gain)
+
+    def _gate_received(self, z: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, int]:
+        """``mask`` without the received components the gate rejects, and how many: they are
+        then lost, extrapolated like the others, and kept out of the extrapolation's history."""
+        received = (mask & np.isfinite(z)).nonzero()[0]
+        if received.size == 0:
+            return mask, 0
+        kept, rejected = gate(self.model, self.x, self.P, z, received, self._gate_threshold,
+                              self._gate_variances(received))
+        if rejected == 0:
+            return mask, 0
+        mask = mask.copy()
+        mask[received] = False
+        if kept is not None:
+            mask[kept] = True
+        return mask, rejected

@@ -4,14 +4,18 @@ A model that offers :class:`~uwcosim.models.protocol.CompiledForm` (the TAN mode
 its transition as a compiled function writing ``F``, ``b`` and ``Q`` of the step (``x' = F x +
 b + w``) and its measurements as rows linear in the state plus at most one table-surface row
 (the terrain depth, :mod:`uwcosim.core.bicubic`). A filter's step then costs two compiled calls
-(the model's transition, the filter's equations) instead of some forty numpy calls.
+(the model's transition, the filter's equations) instead of some forty numpy calls, and a whole
+step one (:func:`ekf_step`: prediction and update, the transition inlined when the model names
+one of :mod:`uwcosim.core.kinematics`; :meth:`uwcosim.filters.base.Estimator.step`).
 
 The filter's constant data and its per-step scratch travel in one named bundle, a
 :class:`Workspace`: a one-element structured array whose fields (``ws[0].F``, ``ws[0].Q``,
 ``ws[0].H0`` ...) the kernels read by name. It is the one argument bundle Numba's dispatcher
 types cheaply: a NamedTuple of arrays costs 0.3-0.5 us per field at every call, a structref 3 us
 and uncached, a structured array about 0.1 us (``benchmarks/bench_filters.py`` times the step).
-The mean ``x`` and covariance ``P`` are the filter's own arrays, updated in place.
+The mean ``x`` and covariance ``P`` are the filter's own arrays, updated in place; a whole step
+(:func:`ekf_step`) keeps them in the bundle too (``ws[0].x``, ``ws[0].P``: the filter's ``x``
+and ``P`` are then views of them), two arguments fewer per call.
 
 The equations are those of the numpy steps (:mod:`uwcosim.filters.kalman`), written as loops in
 index order: Cholesky by columns, solves by substitution, products by rows. Where the numpy
@@ -32,7 +36,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from uwcosim.core import bicubic, jit
+from uwcosim.core import bicubic, jit, kinematics
 from uwcosim.core.errors import FilterDivergence
 from uwcosim.filters.grid.small_linalg import mm, mv
 from uwcosim.filters.numerics import JITTER_START, JITTER_STEPS
@@ -42,6 +46,7 @@ NO_DATA = -1  # no usable measurement component: the update does nothing
 NOT_FINITE = 1  # NaN or inf in the state or covariance after the step
 COV_NOT_FINITE = 2  # a covariance to factorize holds NaN or inf
 NOT_PD = 3  # a covariance stays indefinite after the jitter of repair_pd
+IN_PREDICTION = 16  # added to a status of a whole step's prediction half
 
 
 class Workspace(NamedTuple):
@@ -51,29 +56,42 @@ class Workspace(NamedTuple):
     F: np.ndarray  #: view of ``ws[0].F``: the model's transition writes ``F``, ``b``, ``Q``
     b: np.ndarray  #: view of ``ws[0].b``
     Q: np.ndarray  #: view of ``ws[0].Q``
+    x: np.ndarray  #: view of ``ws[0].x``, the mean of a whole step
+    P: np.ndarray  #: view of ``ws[0].P``, the covariance of a whole step
     table: np.ndarray  #: the surface row's polynomial table (a dummy without one)
     transition: Callable[..., None]  #: ``transition(u, dt, F, b, Q)``, the model's
+    given: bool  #: the model's transition is not compiled in: call it before a whole step
+    everything: np.ndarray  #: the mask of every measurement component (``mask=None``)
+    nothing: np.ndarray  #: no measurement: ``z`` of NaN, for a step with ``z=None``
 
 
-def workspace_fields(n: int, nz: int) -> list[tuple]:
+def workspace_fields(n: int, nz: int, npar: int) -> list[tuple]:
     """The fields every compiled Kalman step reads (the dtype of :func:`workspace`)."""
-    return [("F", "f8", (n, n)), ("b", "f8", n), ("Q", "f8", (n, n)),
-            ("H0", "f8", (nz, n)), ("R", "f8", (nz, nz)),
+    return [("x", "f8", n), ("P", "f8", (n, n)),
+            ("F", "f8", (n, n)), ("b", "f8", n), ("Q", "f8", (n, n)),
+            ("motion", "i8"), ("params", "f8", max(npar, 1)),  # core.kinematics' code
+            ("H0", "f8", (nz, n)), ("R", "f8", (nz, nz)), ("use", "u1", nz),
             ("srow", "i8"), ("si", "i8"), ("sj", "i8"),  # the surface row and its states
             ("sx0", "f8"), ("sy0", "f8"), ("sidx", "f8"), ("sidy", "f8"),
             ("snx", "i8"), ("sny", "i8")]
 
 
-def workspace(model, extra: list[tuple] | None = None) -> Workspace | None:
-    """The :class:`Workspace` of ``model`` (None when it offers no compiled form), with the
-    ``extra`` fields of a filter (e.g. a sigma-point rule), to be filled by the caller."""
+def workspace(model, use: np.ndarray, extra: list[tuple] | None = None) -> Workspace | None:
+    """The :class:`Workspace` of ``model`` (None when it offers no compiled form) for a filter
+    using the measurement components ``use``, with the ``extra`` fields of a filter (e.g. a
+    sigma-point rule), to be filled by the caller."""
     form_of = getattr(model, "compiled_form", None)
     form = form_of() if form_of is not None else None
     if form is None:
         return None
     n, nz = model.nx, model.nz
-    ws = np.zeros(1, dtype=np.dtype(workspace_fields(n, nz) + (extra or []), align=True))
+    params = np.asarray(form.params, dtype=float)
+    fields = workspace_fields(n, nz, params.size) + (extra or [])
+    ws = np.zeros(1, dtype=np.dtype(fields, align=True))
     s = ws[0]
+    s["motion"] = form.motion
+    s["params"][: params.size] = params
+    s["use"] = use
     s["H0"] = form.H0
     s["R"] = model.R
     s["srow"] = form.surface_row
@@ -81,11 +99,18 @@ def workspace(model, extra: list[tuple] | None = None) -> Workspace | None:
     g = form.surface
     s["sx0"], s["sy0"], s["sidx"], s["sidy"], s["snx"], s["sny"] = g
     table = np.ascontiguousarray(form.table, dtype=float)
-    return Workspace(ws, ws["F"][0], ws["b"][0], ws["Q"][0], table, form.transition)
+    return Workspace(ws, ws["F"][0], ws["b"][0], ws["Q"][0], ws["x"][0], ws["P"][0], table,
+                     form.transition,
+                     form.motion == kinematics.GIVEN, np.ones(nz, dtype=bool),
+                     np.full(nz, np.nan))
 
 
 def raise_for_status(status: int, what: str) -> None:
-    """Raise the :class:`FilterDivergence` of the numpy steps for a step's ``status``."""
+    """Raise the :class:`FilterDivergence` of the numpy steps for a step's ``status``
+    (``what``: e.g. ``"ekf update"``; a whole step's prediction says ``prediction``)."""
+    if status >= IN_PREDICTION:
+        status -= IN_PREDICTION
+        what = what.replace("update", "prediction")
     if status == NOT_FINITE:
         raise FilterDivergence(f"{what} contains NaN or inf")
     if status == COV_NOT_FINITE:
@@ -216,11 +241,12 @@ def finite(x, P):
 
 
 @jit.jit
-def select_rows(z, use, rows):
-    """The available components ``rows[:m]`` (finite and used); returns ``m``."""
+def select_rows(use, z, mask, rows):
+    """The available components ``rows[:m]``: finite, received (``mask``) and used by the
+    filter (``use``, the workspace's); returns ``m``."""
     m = 0
     for r in range(z.shape[0]):
-        if use[r] and math.isfinite(z[r]):
+        if use[r] != 0 and mask[r] and math.isfinite(z[r]):
             rows[m] = r
             m += 1
     return m
@@ -279,13 +305,13 @@ def ekf_predict(ws, x, P):
 
 
 @jit.jit
-def ekf_update(ws, table, x, P, z, use):
-    """EKF update (Joseph form) with the available components of ``z`` (finite and ``use``);
-    ``x``, ``P`` in place. Returns ``(status, nis, nis_dof, repairs)``."""
+def ekf_update(ws, table, x, P, z, mask):
+    """EKF update (Joseph form) with the available components of ``z`` (finite, ``mask`` and
+    used); ``x``, ``P`` in place. Returns ``(status, nis, nis_dof, repairs)``."""
     s = ws[0]
     n, nz = x.shape[0], z.shape[0]
     rows = np.empty(nz, np.int64)
-    m = select_rows(z, use, rows)
+    m = select_rows(s.use, z, mask, rows)
     if m == 0:
         return NO_DATA, 0.0, 0.0, 0.0
     hx = np.empty(m)
@@ -310,18 +336,33 @@ def ekf_update(ws, table, x, P, z, use):
     return (OK if finite(x, P) else NOT_FINITE), nis, float(m), repairs
 
 
-def compiled_workspace(est, model, extra: list[tuple] | None = None) -> Workspace | None:
-    """The workspace of a filter whose ``compiled`` setting is on (None: the numpy steps, also
-    when Numba is off, :data:`uwcosim.core.jit.ENABLED`); a one-line ValueError when the model
-    offers no compiled form, or with the chi-square gate (``gate_probability``), which only the
-    numpy step applies."""
+@jit.jit
+def ekf_step(ws, table, u, dt, z, mask):
+    """A whole EKF step on ``ws[0].x``, ``ws[0].P``: the model's transition (if compiled in),
+    :func:`ekf_predict`, then :func:`ekf_update`. Returns ``(status, nis, nis_dof, repairs)``,
+    a failed prediction's status plus :data:`IN_PREDICTION`."""
+    s = ws[0]
+    kinematics.write(s.motion, u, dt, s.params, s.F, s.b, s.Q)  # F, b, Q of the step
+    status = ekf_predict(ws, s.x, s.P)  # x = F x + b, P = F P F' + Q
+    if status != OK:
+        return status + IN_PREDICTION, 0.0, 0.0, 0.0
+    return ekf_update(ws, table, s.x, s.P, z, mask)  # x = x + K y, P = (I-KH) P (I-KH)' + K R K'
+
+
+def compiled_workspace(est, model, use: np.ndarray,
+                       extra: list[tuple] | None = None) -> Workspace | None:
+    """The workspace of a filter whose ``compiled`` setting is on, using the measurement
+    components ``use`` (None: the numpy steps, also when Numba is off,
+    :data:`uwcosim.core.jit.ENABLED`); a one-line ValueError when the model offers no compiled
+    form, or with the chi-square gate (``gate_probability``), which only the numpy step
+    applies."""
     # a subclass's own Settings (a user's filter derived from ours) may not declare it
     if not getattr(est.settings, "compiled", False) or not jit.ENABLED:
         return None
     if getattr(est.settings, "gate_probability", None) is not None:  # filters.gating: numpy only
         raise ValueError(f"estimator {est.kind}: compiled = true has no chi-square gate "
                          "(gate_probability); set one of them")
-    w = workspace(model, extra)
+    w = workspace(model, use, extra)
     if w is None:
         raise ValueError(
             f"estimator {est.kind}: compiled = true needs a model with a compiled form (a linear "

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from uwcosim.core import kinematics
 from uwcosim.core.jit import jit
 from uwcosim.filters import kalman_kernels as kk
 
@@ -90,14 +91,15 @@ def sigma_predict(ws, x, P):
 
 
 @jit
-def sigma_update(ws, table, x, P, z, use, stored):
-    """Update with the available components of ``z``: points redrawn from ``(x, P)``, or the
+def sigma_update(ws, table, x, P, z, mask, stored):
+    """Update with the available components of ``z`` (finite, ``mask`` and used): points
+    redrawn from ``(x, P)``, or the
     propagated ``ws[0].Y`` if ``stored``; ``x``, ``P`` in place. Returns ``(status, nis,
     nis_dof, repairs)``."""
     s = ws[0]
     n, nz = x.shape[0], z.shape[0]
     rows = np.empty(nz, np.int64)
-    m = kk.select_rows(z, use, rows)
+    m = kk.select_rows(s.use, z, mask, rows)
     if m == 0:
         return kk.NO_DATA, 0.0, 0.0, 0.0
     npts = s.wm.shape[0]
@@ -155,3 +157,19 @@ def sigma_update(ws, table, x, P, z, use, stored):
             A[a, b] = P[a, b] - v  # P = P - K S K'
     kk.symmetrize_into(A, P)
     return (kk.OK if kk.finite(x, P) else kk.NOT_FINITE), nis, float(m), repairs
+
+
+@jit
+def sigma_step(ws, table, u, dt, z, mask):
+    """A whole step of the UKF/CKF on ``ws[0].x``, ``ws[0].P``: the model's transition (if
+    compiled in), :func:`sigma_predict`, then :func:`sigma_update` on redrawn points. Returns
+    ``(status, nis, nis_dof, repairs)``, a failed prediction's status plus
+    :data:`~uwcosim.filters.kalman_kernels.IN_PREDICTION`."""
+    s = ws[0]
+    kinematics.write(s.motion, u, dt, s.params, s.F, s.b, s.Q)  # F, b, Q of the step
+    x, P = s.x, s.P
+    status, repairs = sigma_predict(ws, x, P)  # Y_i = f(X_i, u), x = sum wm_i Y_i, P
+    if status != kk.OK:
+        return status + kk.IN_PREDICTION, 0.0, 0.0, repairs
+    status, nis, dof, more = sigma_update(ws, table, x, P, z, mask, False)  # K, x, P
+    return status, nis, dof, repairs + more

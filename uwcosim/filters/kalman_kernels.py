@@ -38,8 +38,8 @@ import numpy as np
 
 from uwcosim.core import bicubic, jit, kinematics
 from uwcosim.core.errors import FilterDivergence
-from uwcosim.filters.grid.small_linalg import mm, mv
 from uwcosim.filters.numerics import JITTER_START, JITTER_STEPS
+from uwcosim.filters.small_linalg import cholesky, mm_into, mv_into
 
 OK = 0
 NO_DATA = -1  # no usable measurement component: the update does nothing
@@ -73,7 +73,13 @@ def workspace_fields(n: int, nz: int, npar: int) -> list[tuple]:
             ("H0", "f8", (nz, n)), ("R", "f8", (nz, nz)), ("use", "u1", nz),
             ("srow", "i8"), ("si", "i8"), ("sj", "i8"),  # the surface row and its states
             ("sx0", "f8"), ("sy0", "f8"), ("sidx", "f8"), ("sidy", "f8"),
-            ("snx", "i8"), ("sny", "i8")]
+            ("snx", "i8"), ("sny", "i8"),
+            # the EKF's work arrays (a step with m available rows uses their first m rows)
+            ("rows", "i8", nz), ("hx", "f8", nz), ("H", "f8", (nz, n)), ("y", "f8", nz),
+            ("Rm", "f8", (nz, nz)), ("PHt", "f8", (n, nz)), ("S", "f8", (nz, nz)),
+            ("L", "f8", (nz, nz)), ("B", "f8", (nz, n + 1)), ("K", "f8", (n, nz)),
+            ("KR", "f8", (n, nz)), ("v", "f8", n), ("T", "f8", (n, n)), ("A", "f8", (n, n)),
+            ("A2", "f8", (n, n)), ("IKH", "f8", (n, n))]
 
 
 def workspace(model, use: np.ndarray, extra: list[tuple] | None = None) -> Workspace | None:
@@ -117,28 +123,6 @@ def raise_for_status(status: int, what: str) -> None:
         raise FilterDivergence("covariance contains NaN or inf")
     if status == NOT_PD:
         raise FilterDivergence("covariance not positive definite beyond repair")
-
-
-@jit.jit
-def cholesky(A, L):
-    """Lower Cholesky factor of the symmetric ``A`` into ``L``; False if not PD."""
-    n = A.shape[0]
-    for j in range(n):
-        d = A[j, j]
-        for k in range(j):
-            d -= L[j, k] * L[j, k]
-        if not d > 0.0:
-            return False
-        ljj = math.sqrt(d)
-        L[j, j] = ljj
-        for i in range(j):
-            L[i, j] = 0.0
-        for i in range(j + 1, n):
-            v = A[i, j]
-            for k in range(j):
-                v -= L[i, k] * L[j, k]
-            L[i, j] = v / ljj
-    return True
 
 
 @jit.jit
@@ -193,17 +177,13 @@ def cho_solve(L, B):
 
 
 @jit.jit
-def gain_and_nis(PHt, S, y):
-    """``(K, nis, repairs, status)``: ``K = P H' S^-1`` and ``y' S^-1 y`` from one factor of
-    ``S`` (repaired on a copy, as :func:`uwcosim.filters.numerics.gain_and_nis`)."""
+def gain_and_nis_into(PHt, S, y, L, B, K):
+    """``(nis, repairs, status)``: ``K = P H' S^-1`` and ``y' S^-1 y`` from one factor ``L`` of
+    ``S`` (``S`` repaired in place if needed; ``L``, ``B`` the work arrays of the solve)."""
     n, m = PHt.shape
-    S = S.copy()
-    L = np.zeros((m, m))
     repairs, status = factor(S, L)
-    K = np.empty((n, m))
     if status != OK:
-        return K, 0.0, repairs, status
-    B = np.empty((m, n + 1))
+        return 0.0, repairs, status
     for i in range(m):
         for j in range(n):
             B[i, j] = PHt[j, i]
@@ -214,7 +194,18 @@ def gain_and_nis(PHt, S, y):
         for j in range(n):
             K[j, i] = B[i, j]  # K = (S^-1 (P H')')'
         nis += y[i] * B[i, n]  # nis = y' S^-1 y
-    return K, nis, repairs, OK
+    return nis, repairs, OK
+
+
+@jit.jit
+def gain_and_nis(PHt, S, y):
+    """``(K, nis, repairs, status)``: ``K = P H' S^-1`` and ``y' S^-1 y`` from one factor of
+    ``S`` (repaired on a copy, as :func:`uwcosim.filters.numerics.gain_and_nis`)."""
+    n, m = PHt.shape
+    K = np.empty((n, m))
+    nis, repairs, status = gain_and_nis_into(PHt, S.copy(), y, np.empty((m, m)),
+                                             np.empty((m, n + 1)), K)
+    return K, nis, repairs, status
 
 
 @jit.jit
@@ -296,42 +287,58 @@ def ekf_predict(ws, x, P):
     """EKF prediction with the step's ``F``, ``b``, ``Q`` (in ``ws``); ``x``, ``P`` in place.
     Returns the status."""
     s = ws[0]
-    F, b, Q = s.F, s.b, s.Q
-    xp = mv(F, x) + b  # x = f(x, u) = F x + b
-    A = mm(mm(F, P), F.T) + Q  # P = F P F' + Q
+    F, b, Q, v, T, A = s.F, s.b, s.Q, s.v, s.T, s.A
+    mv_into(F, x, v)
+    for i in range(x.shape[0]):
+        x[i] = v[i] + b[i]  # x = f(x, u) = F x + b
+    add_into(mm_into(mm_into(F, P, T), F.T, A), Q)  # P = F P F' + Q
     symmetrize_into(A, P)
-    x[:] = xp
     return OK if finite(x, P) else NOT_FINITE
+
+
+@jit.jit
+def add_into(A, B):
+    """``A = A + B``; returns ``A``."""
+    for i in range(A.shape[0]):
+        for j in range(A.shape[1]):
+            A[i, j] = A[i, j] + B[i, j]
+    return A
 
 
 @jit.jit
 def ekf_update(ws, table, x, P, z, mask):
     """EKF update (Joseph form) with the available components of ``z`` (finite, ``mask`` and
-    used); ``x``, ``P`` in place. Returns ``(status, nis, nis_dof, repairs)``."""
+    used); ``x``, ``P`` in place, the workspace's work arrays for the rest (their first ``m``
+    rows). Returns ``(status, nis, nis_dof, repairs)``."""
     s = ws[0]
-    n, nz = x.shape[0], z.shape[0]
-    rows = np.empty(nz, np.int64)
-    m = select_rows(s.use, z, mask, rows)
+    n = x.shape[0]
+    m = select_rows(s.use, z, mask, s.rows)
     if m == 0:
         return NO_DATA, 0.0, 0.0, 0.0
-    hx = np.empty(m)
-    H = np.empty((m, n))
+    rows, hx, H, y, R = s.rows, s.hx[:m], s.H[:m], s.y[:m], s.Rm[:m, :m]
     measure(s, table, x, rows, m, hx, H)  # h(x) and H = dh/dx at the prior mean
-    y = np.empty(m)
     for k in range(m):
         y[k] = z[rows[k]] - hx[k]  # y = z - h(x)
-    R = np.empty((m, m))
     for a in range(m):
         for c in range(m):
             R[a, c] = s.R[rows[a], rows[c]]  # the available components' R
-    PHt = mm(P, H.T)
-    S = mm(H, PHt) + R  # S = H P H' + R
-    K, nis, repairs, status = gain_and_nis(PHt, S, y)  # K = P H' S^-1
+    PHt, S, K = s.PHt[:, :m], s.S[:m, :m], s.K[:, :m]
+    mm_into(P, H.T, PHt)
+    add_into(mm_into(H, PHt, S), R)  # S = H P H' + R
+    nis, repairs, status = gain_and_nis_into(PHt, S, y, s.L[:m, :m], s.B[:m],
+                                             K)  # K = P H' S^-1
     if status != OK:
         return status, 0.0, 0.0, repairs
-    x += mv(K, y)  # x = x + K y
-    IKH = np.eye(n) - mm(K, H)
-    A = mm(mm(IKH, P), IKH.T) + mm(mm(K, R), K.T)  # P = (I - K H) P (I - K H)' + K R K'
+    v, IKH, T, A, A2 = s.v, s.IKH, s.T, s.A, s.A2
+    mv_into(K, y, v)
+    for i in range(n):
+        x[i] = x[i] + v[i]  # x = x + K y
+    mm_into(K, H, IKH)
+    for i in range(n):
+        for j in range(n):
+            IKH[i, j] = (1.0 if i == j else 0.0) - IKH[i, j]  # I - K H
+    mm_into(mm_into(IKH, P, T), IKH.T, A)
+    add_into(A, mm_into(mm_into(K, R, s.KR[:, :m]), K.T, A2))  # P = (I-KH) P (I-KH)' + K R K'
     symmetrize_into(A, P)
     return (OK if finite(x, P) else NOT_FINITE), nis, float(m), repairs
 

@@ -10,6 +10,8 @@ spectral basis or a grid, and run a Kalman filter for the others.
   (``KalmanBlock``, ``ModelStep``);
 - ``likelihood``: the likelihood of the gridded measurement rows on a tensor grid, the
   separable terrain spline (``TerrainGrid``) and its compiled form (``terrain_depth``);
-- ``moments``: mean and covariance of a density on a tensor grid (numpy and compiled forms);
-- ``small_linalg``: compiled loops for the small matrices of the steps.
+- ``moments``: mean and covariance of a density on a tensor grid (numpy and compiled forms).
+
+The compiled loops for the small matrices of their steps are :mod:`uwcosim.filters.small_linalg`
+(the Kalman family's compiled steps use them too).
 """

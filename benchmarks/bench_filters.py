@@ -3,7 +3,9 @@
 Every filter runs the same simulated truth and measurements of the TAN model (4 states, DVL
 velocities and the terrain depth over the synthetic map of seed 7), from the same initial
 estimate, with the same ``Q`` (set every step) and ``R``. A step is ``predict`` + ``update`` +
-reading the mean (and covariance where the library keeps one). Each row says what it runs:
+reading the mean (and covariance where the library keeps one); ours call ``est.step(u, dt, z)``,
+the one call the estimator bank makes (the compiled Kalman steps do it in one compiled call).
+Each row says what it runs:
 
 - ``ours X`` / ``ours X compiled``: our filter, numpy step / ``compiled = true`` (the model's
   compiled form, :mod:`uwcosim.filters.kalman_kernels`); ``ours pf-N`` the bootstrap PF.
@@ -153,8 +155,7 @@ def ours(name, model, x0, settings, seed: int = 1):
         est = ours_filter(name, model, x0, settings, seed)
 
         def step(k, z):
-            est.predict(controls(k), 1.0)
-            est.update(z)
+            est.step(controls(k), 1.0, z)  # predict + update (compiled: one call)
             _ = est.P
             return est.x
 

@@ -14,12 +14,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from uwcosim.core import bicubic, jit
+from uwcosim.core import bicubic, jit, kinematics
 from uwcosim.core.errors import FilterDivergence, ScenarioError
 from uwcosim.filters import kalman, sigma_point  # noqa: F401  (registers the filters)
 from uwcosim.filters.base import ESTIMATORS
 from uwcosim.models import tan as tan_module
-from uwcosim.models import tan_kernels
 from uwcosim.models.tan import tan_model
 from uwcosim.models.terrain import synthetic_bathymetry
 from uwcosim.models.trajectory import simulate
@@ -86,7 +85,7 @@ def test_terrain_row_and_transition_are_the_models_bits(model):
     F, b, Q = np.empty((4, 4)), np.empty(4), np.empty((4, 4))
     for k in range(50):
         u = controls(7 * k)
-        tan_kernels.transition(u, 1.0, model.q_psd, F, b, Q)
+        kinematics.heading_step(u, 1.0, model.q_psd, F, b, Q)
         assert np.array_equal(F, model.F(START, u, 1.0))
         assert np.array_equal(b, model.f(np.zeros(4), u, 1.0))  # f(0) = F 0 + b = b
         Qn = model.Q(START, u, 1.0)  # BLAS's FMA leaves 1e-26 where the loops cancel to 0
@@ -169,5 +168,92 @@ def test_compiled_kalman_filter_on_a_linear_model():
             xs.append(est.x.copy())
         out.append((np.array(xs), est.P.copy()))
     assert est.workspace is not None
+    np.testing.assert_allclose(out[1][0], out[0][0], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(out[1][1], out[0][1], rtol=1e-12, atol=1e-15)
+
+
+def run_steps(model, kind, zs, x0, **settings):
+    """As :func:`run`, through ``est.step`` (the bank's one call; compiled: one kernel)."""
+    est = ESTIMATORS.get(kind)(model, x0, np.diag(STD0**2), **settings)
+    xs, Ps, diags = [], [], []
+    for k, z in enumerate(zs):
+        mask = None if k % 3 else np.array([True, True, False])
+        est.step(controls(k), 1.0, None if k % 17 == 5 else z, mask, t=float(k + 1))
+        assert est.t == float(k + 1)
+        xs.append(est.x.copy())
+        Ps.append(est.P.copy())
+        diags.append(dict(est.diagnostics))
+    return np.array(xs), np.array(Ps), diags, est
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+@pytest.mark.parametrize("kind", KINDS)
+def test_whole_step_is_predict_then_update(model, data, kind, compiled):
+    """``step`` (the EKF's and the UKF/CKF's one compiled call) gives the bits and the
+    diagnostics of ``predict`` then ``update``, numpy or compiled."""
+    if compiled and not jit.ENABLED:
+        pytest.skip("Numba not installed or disabled")
+    zs, x0 = data
+    xs, Ps, diags, est = run_steps(model, kind, zs, x0, compiled=compiled)
+    ref = ESTIMATORS.get(kind)(model, x0, np.diag(STD0**2), compiled=compiled)
+    for k, z in enumerate(zs):
+        ref.predict(controls(k), 1.0)
+        mask = None if k % 3 else np.array([True, True, False])
+        ref.update(None if k % 17 == 5 else z, mask)
+        assert np.array_equal(xs[k], ref.x) and np.array_equal(Ps[k], ref.P), k
+        assert diags[k] == ref.diagnostics, k
+    assert "nis" not in diags[5] and "nis" in diags[6]
+
+
+@needs_numba
+def test_whole_step_takes_arrays_set_from_outside(model, data):
+    """``x`` and ``P`` live in the compiled workspace during whole steps; arrays assigned to
+    the filter are copied in at the next step, not ignored."""
+    zs, x0 = data
+    a = ESTIMATORS.get("ekf")(model, x0, np.diag(STD0**2), compiled=True)
+    b = ESTIMATORS.get("ekf")(model, x0, np.diag(STD0**2))
+    for k in range(20):
+        if k == 10:
+            a.x, a.P = b.x.copy() + 1.0, b.P.copy() * 2.0
+            b.x, b.P = b.x + 1.0, b.P * 2.0
+        a.step(controls(k), 1.0, zs[k])
+        b.step(controls(k), 1.0, zs[k])
+        np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(a.P, b.P, rtol=1e-12, atol=1e-15)
+
+
+@needs_numba
+@pytest.mark.parametrize("kind", ["ekf", "ukf"])
+def test_whole_step_divergence_is_the_numpy_error(model, kind):
+    """A whole step that fails in its prediction says so, as ``predict`` does."""
+    messages = []
+    for compiled in (False, True):
+        est = ESTIMATORS.get(kind)(model, START, np.diag(STD0**2), compiled=compiled)
+        est.x[0] = np.inf
+        with pytest.raises(FilterDivergence) as err, np.errstate(invalid="ignore"):
+            est.step(controls(0), 1.0, None)
+        messages.append(str(err.value))
+    assert messages[0] == messages[1] == f"{kind} prediction contains NaN or inf"
+
+
+@needs_numba
+def test_whole_step_on_a_linear_model():
+    """The linear model's transition is not compiled in (``GIVEN``): the whole step calls it
+    first, then its one kernel; equal to the numpy step to round-off."""
+    from uwcosim.models.linear import seed001_model
+
+    lin = seed001_model()
+    rng = np.random.default_rng(5)
+    zs = rng.standard_normal((200, lin.nz)) + np.linspace(0, 50, 200)[:, None]
+    zs[::7, 0] = np.nan
+    out = []
+    for compiled in (False, True):
+        est = ESTIMATORS.get("kf")(lin, np.zeros(lin.nx), np.eye(lin.nx), compiled=compiled)
+        xs = []
+        for z in zs:
+            est.step(np.zeros(lin.nu), 1.0, z)
+            xs.append(est.x.copy())
+        out.append((np.array(xs), est.P.copy()))
+    assert est.workspace.given
     np.testing.assert_allclose(out[1][0], out[0][0], rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(out[1][1], out[0][1], rtol=1e-12, atol=1e-15)

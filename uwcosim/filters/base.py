@@ -6,6 +6,8 @@ code, numpy in and numpy out)::
     est.predict(u, dt)        # time update over dt with control u held
     est.update(z, mask)       # measurement update; mask[i] False = component i missing
     est.update(None)          # no measurement this step (FilterPy's update(z=None))
+    est.step(u, dt, z, mask)  # predict then update, as one call (the compiled Kalman steps
+                              # fuse them); t= sets est.t between the two
     est.diagnostics           # per-step diagnostics (dict of floats), reset every step
     est.t                     # time of the current estimate; the driver sets it (the master
                               # sets est.t = t0 + k*h before each update; it is never summed)
@@ -87,6 +89,16 @@ class Estimator(ABC):
     @abstractmethod
     def update(self, z: np.ndarray | None, mask: np.ndarray | None = None) -> None:
         """Measurement update; ``z=None`` or an all-False ``mask`` means no measurement."""
+
+    def step(self, u: np.ndarray, dt: float, z: np.ndarray | None,
+             mask: np.ndarray | None = None, t: float | None = None) -> None:
+        """A whole step: ``predict(u, dt)``, then ``self.t = t`` (if given), then
+        ``update(z, mask)``. A filter may do it in one call (the compiled Kalman steps) with the
+        same result as the three."""
+        self.predict(u, dt)
+        if t is not None:
+            self.t = t
+        self.update(z, mask)
 
     @classmethod
     def validate_settings(cls, settings: dict[str, Any]) -> FilterSettings:

@@ -11,9 +11,11 @@ uses (no terrain lookup where the model offers ``h_rows``).
 ``compiled = true`` (every filter of this module and of :mod:`uwcosim.filters.sigma_point`)
 runs the same equations compiled on the model's compiled form
 (:mod:`uwcosim.filters.kalman_kernels`; the TAN and linear models offer one): two compiled
-calls per step, equal to the numpy step to round-off but not bit for bit (BLAS groups the sums
-differently), hence off by default. With Numba off (``UWCOSIM_NUMBA=0``) the numpy step runs.
-The compiled step updates ``x`` and ``P`` in place (copy them to keep them).
+calls for ``predict`` and ``update``, one for a whole :meth:`~uwcosim.filters.base.Estimator.
+step` (what the estimator bank calls), equal to the numpy step to round-off but not bit for bit
+(BLAS groups the sums differently), hence off by default. With Numba off
+(``UWCOSIM_NUMBA=0``) the numpy step runs. The compiled step updates ``x`` and ``P`` in place
+(copy them to keep them).
 
 The 4-state TAN filters are bound by numpy's per-call overhead (about 0.5-1 us per operation
 on these small matrices), so the steps keep the number of numpy calls low: ``np.dot`` on
@@ -46,19 +48,19 @@ def compiled_field():
 
 
 class CompiledUpdate:
-    """The update half of a compiled step (a mixin of :class:`FilterBase` subclasses): the
+    """The compiled halves and whole steps (a mixin of :class:`FilterBase` subclasses): the
     bookkeeping of ``FilterBase._begin_update`` and the diagnostics around one kernel call."""
 
     def _compiled_update(self, kernel, w, z, mask, *extra) -> None:
-        """``kernel(ws, table, x, P, z, use, *extra) -> (status, nis, nis_dof, repairs)``."""
+        """``kernel(ws, table, x, P, z, mask, *extra) -> (status, nis, nis_dof, repairs)``."""
         if not self._predicted:
             self.diagnostics = {"pd_repairs": 0.0}
         self._predicted = False
         if z is None:
             return
         z = np.asarray(z, dtype=float)
-        use = self._use if mask is None else self._use & np.asarray(mask, dtype=bool)
-        status, nis, dof, repairs = kernel(w.ws, w.table, self.x, self.P, z, use, *extra)
+        mask = w.everything if mask is None else np.asarray(mask, dtype=bool)
+        status, nis, dof, repairs = kernel(w.ws, w.table, self.x, self.P, z, mask, *extra)
         d = self.diagnostics
         if repairs:
             d["pd_repairs"] += repairs
@@ -68,6 +70,42 @@ class CompiledUpdate:
             raise_for_status(status, f"{self.kind} update")
         d["nis"] = nis
         d["nis_dof"] = dof
+
+    def _compiled_step(self, kernel, w, u, dt, z, mask, t) -> None:
+        """A whole step in one call: ``kernel(ws, table, u, dt, z, mask) -> (status, nis,
+        nis_dof, repairs)`` on the workspace's ``x`` and ``P`` (``self.x``, ``self.P`` are
+        their views; given new arrays, their values are copied in), the diagnostics of
+        ``predict`` then ``update``."""
+        if t is not None:
+            self.t = t
+        self._predicted = False
+        if self.x is not w.x:  # the first step, or arrays set from outside
+            w.x[:] = self.x
+            self.x = w.x
+        if self.P is not w.P:
+            w.P[:] = self.P
+            self.P = w.P
+        if w.given:  # the model's transition is not compiled in: F, b, Q of the step first
+            w.transition(u, float(dt), w.F, w.b, w.Q)
+            u = w.nothing
+        elif type(u) is not np.ndarray:
+            u = np.asarray(u, dtype=float)
+        if z is None:
+            z, mask = w.nothing, w.everything  # NaN: no component available
+        else:
+            if type(z) is not np.ndarray:
+                z = np.asarray(z, dtype=float)
+            if mask is None:
+                mask = w.everything
+            elif type(mask) is not np.ndarray:
+                mask = np.asarray(mask, dtype=bool)
+        status, nis, dof, repairs = kernel(w.ws, w.table, u, float(dt), z, mask)
+        if status == 0:
+            self.diagnostics = {"pd_repairs": repairs, "nis": nis, "nis_dof": dof}
+            return
+        self.diagnostics = {"pd_repairs": repairs}
+        if status != NO_DATA:
+            raise_for_status(status, f"{self.kind} update")
 
 
 @register("ekf")
@@ -83,7 +121,7 @@ class ExtendedKalmanFilter(CompiledUpdate, FilterBase):
         super().__init__(model, x0, P0, **settings)
         self._eye = np.eye(model.nx)
         #: the compiled step's workspace (None: the numpy step)
-        self.workspace = compiled_workspace(self, model)
+        self.workspace = compiled_workspace(self, model, self._use)
 
     def predict(self, u, dt: float) -> None:
         self._begin_predict()
@@ -100,6 +138,13 @@ class ExtendedKalmanFilter(CompiledUpdate, FilterBase):
         P += Q
         self.P = symmetrize_(P)  # P = F P F' + Q
         self._check("prediction")
+
+    def step(self, u, dt: float, z, mask=None, t: float | None = None) -> None:
+        w = self.workspace
+        if w is None:
+            super().step(u, dt, z, mask, t)
+            return
+        self._compiled_step(kalman_kernels.ekf_step, w, u, dt, z, mask, t)  # predict, update
 
     def update(self, z, mask=None) -> None:
         if self.workspace is not None:
@@ -174,11 +219,22 @@ class DeadReckoning(ExtendedKalmanFilter):
             self.rows = np.array([0, 1])
         super().__init__(model, x0, P0, **settings)
 
+    def step(self, u, dt: float, z, mask=None, t: float | None = None) -> None:
+        if self.workspace is None or self.rows is None:  # predict, then update (below)
+            super().step(u, dt, z, mask, t)
+            return
+        z, mask = self._rows_of(z, mask)
+        super().step(u, dt, z, mask, t)  # the compiled whole step: no update() of ours
+
     def update(self, z, mask=None) -> None:
         if self.rows is not None:
-            z = None if z is None else np.asarray(z, dtype=float)[self.rows]
-            mask = None if mask is None else np.asarray(mask)[self.rows]
+            z, mask = self._rows_of(z, mask)
         super().update(z, mask)
+
+    def _rows_of(self, z, mask):
+        """``z`` and ``mask`` of the rows this filter is given."""
+        z = None if z is None else np.asarray(z, dtype=float)[self.rows]
+        return z, None if mask is None else np.asarray(mask)[self.rows]
 
     def measurements_used(self) -> list[str]:
         """The ``measurements`` setting, by default the velocity components."""

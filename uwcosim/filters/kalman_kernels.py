@@ -4,14 +4,18 @@ A model that offers :class:`~uwcosim.models.protocol.CompiledForm` (the TAN mode
 its transition as a compiled function writing ``F``, ``b`` and ``Q`` of the step (``x' = F x +
 b + w``) and its measurements as rows linear in the state plus at most one table-surface row
 (the terrain depth, :mod:`uwcosim.core.bicubic`). A filter's step then costs two compiled calls
-(the model's transition, the filter's equations) instead of some forty numpy calls.
+(the model's transition, the filter's equations) instead of some forty numpy calls, and a whole
+step one (:func:`ekf_step`: prediction and update, the transition inlined when the model names
+one of :mod:`uwcosim.core.kinematics`; :meth:`uwcosim.filters.base.Estimator.step`).
 
 The filter's constant data and its per-step scratch travel in one named bundle, a
 :class:`Workspace`: a one-element structured array whose fields (``ws[0].F``, ``ws[0].Q``,
 ``ws[0].H0`` ...) the kernels read by name. It is the one argument bundle Numba's dispatcher
 types cheaply: a NamedTuple of arrays costs 0.3-0.5 us per field at every call, a structref 3 us
 and uncached, a structured array about 0.1 us (``benchmarks/bench_filters.py`` times the step).
-The mean ``x`` and covariance ``P`` are the filter's own arrays, updated in place.
+The mean ``x`` and covariance ``P`` are the filter's own arrays, updated in place; a whole step
+(:func:`ekf_step`) keeps them in the bundle too (``ws[0].x``, ``ws[0].P``: the filter's ``x``
+and ``P`` are then views of them), two arguments fewer per call.
 
 The equations are those of the numpy steps (:mod:`uwcosim.filters.kalman`), written as loops in
 index order: Cholesky by columns, solves by substitution, products by rows. Where the numpy
@@ -32,16 +36,17 @@ from typing import NamedTuple
 
 import numpy as np
 
-from uwcosim.core import bicubic, jit
+from uwcosim.core import bicubic, jit, kinematics
 from uwcosim.core.errors import FilterDivergence
-from uwcosim.filters.grid.small_linalg import mm, mv
 from uwcosim.filters.numerics import JITTER_START, JITTER_STEPS
+from uwcosim.filters.small_linalg import cholesky, mm_into, mv_into
 
 OK = 0
 NO_DATA = -1  # no usable measurement component: the update does nothing
 NOT_FINITE = 1  # NaN or inf in the state or covariance after the step
 COV_NOT_FINITE = 2  # a covariance to factorize holds NaN or inf
 NOT_PD = 3  # a covariance stays indefinite after the jitter of repair_pd
+IN_PREDICTION = 16  # added to a status of a whole step's prediction half
 
 
 class Workspace(NamedTuple):
@@ -51,29 +56,48 @@ class Workspace(NamedTuple):
     F: np.ndarray  #: view of ``ws[0].F``: the model's transition writes ``F``, ``b``, ``Q``
     b: np.ndarray  #: view of ``ws[0].b``
     Q: np.ndarray  #: view of ``ws[0].Q``
+    x: np.ndarray  #: view of ``ws[0].x``, the mean of a whole step
+    P: np.ndarray  #: view of ``ws[0].P``, the covariance of a whole step
     table: np.ndarray  #: the surface row's polynomial table (a dummy without one)
     transition: Callable[..., None]  #: ``transition(u, dt, F, b, Q)``, the model's
+    given: bool  #: the model's transition is not compiled in: call it before a whole step
+    everything: np.ndarray  #: the mask of every measurement component (``mask=None``)
+    nothing: np.ndarray  #: no measurement: ``z`` of NaN, for a step with ``z=None``
 
 
-def workspace_fields(n: int, nz: int) -> list[tuple]:
+def workspace_fields(n: int, nz: int, npar: int) -> list[tuple]:
     """The fields every compiled Kalman step reads (the dtype of :func:`workspace`)."""
-    return [("F", "f8", (n, n)), ("b", "f8", n), ("Q", "f8", (n, n)),
-            ("H0", "f8", (nz, n)), ("R", "f8", (nz, nz)),
+    return [("x", "f8", n), ("P", "f8", (n, n)),
+            ("F", "f8", (n, n)), ("b", "f8", n), ("Q", "f8", (n, n)),
+            ("motion", "i8"), ("params", "f8", max(npar, 1)),  # core.kinematics' code
+            ("H0", "f8", (nz, n)), ("R", "f8", (nz, nz)), ("use", "u1", nz),
             ("srow", "i8"), ("si", "i8"), ("sj", "i8"),  # the surface row and its states
             ("sx0", "f8"), ("sy0", "f8"), ("sidx", "f8"), ("sidy", "f8"),
-            ("snx", "i8"), ("sny", "i8")]
+            ("snx", "i8"), ("sny", "i8"),
+            # the EKF's work arrays (a step with m available rows uses their first m rows)
+            ("rows", "i8", nz), ("hx", "f8", nz), ("H", "f8", (nz, n)), ("y", "f8", nz),
+            ("Rm", "f8", (nz, nz)), ("PHt", "f8", (n, nz)), ("S", "f8", (nz, nz)),
+            ("L", "f8", (nz, nz)), ("B", "f8", (nz, n + 1)), ("K", "f8", (n, nz)),
+            ("KR", "f8", (n, nz)), ("v", "f8", n), ("T", "f8", (n, n)), ("A", "f8", (n, n)),
+            ("A2", "f8", (n, n)), ("IKH", "f8", (n, n))]
 
 
-def workspace(model, extra: list[tuple] | None = None) -> Workspace | None:
-    """The :class:`Workspace` of ``model`` (None when it offers no compiled form), with the
-    ``extra`` fields of a filter (e.g. a sigma-point rule), to be filled by the caller."""
+def workspace(model, use: np.ndarray, extra: list[tuple] | None = None) -> Workspace | None:
+    """The :class:`Workspace` of ``model`` (None when it offers no compiled form) for a filter
+    using the measurement components ``use``, with the ``extra`` fields of a filter (e.g. a
+    sigma-point rule), to be filled by the caller."""
     form_of = getattr(model, "compiled_form", None)
     form = form_of() if form_of is not None else None
     if form is None:
         return None
     n, nz = model.nx, model.nz
-    ws = np.zeros(1, dtype=np.dtype(workspace_fields(n, nz) + (extra or []), align=True))
+    params = np.asarray(form.params, dtype=float)
+    fields = workspace_fields(n, nz, params.size) + (extra or [])
+    ws = np.zeros(1, dtype=np.dtype(fields, align=True))
     s = ws[0]
+    s["motion"] = form.motion
+    s["params"][: params.size] = params
+    s["use"] = use
     s["H0"] = form.H0
     s["R"] = model.R
     s["srow"] = form.surface_row
@@ -81,39 +105,24 @@ def workspace(model, extra: list[tuple] | None = None) -> Workspace | None:
     g = form.surface
     s["sx0"], s["sy0"], s["sidx"], s["sidy"], s["snx"], s["sny"] = g
     table = np.ascontiguousarray(form.table, dtype=float)
-    return Workspace(ws, ws["F"][0], ws["b"][0], ws["Q"][0], table, form.transition)
+    return Workspace(ws, ws["F"][0], ws["b"][0], ws["Q"][0], ws["x"][0], ws["P"][0], table,
+                     form.transition,
+                     form.motion == kinematics.GIVEN, np.ones(nz, dtype=bool),
+                     np.full(nz, np.nan))
 
 
 def raise_for_status(status: int, what: str) -> None:
-    """Raise the :class:`FilterDivergence` of the numpy steps for a step's ``status``."""
+    """Raise the :class:`FilterDivergence` of the numpy steps for a step's ``status``
+    (``what``: e.g. ``"ekf update"``; a whole step's prediction says ``prediction``)."""
+    if status >= IN_PREDICTION:
+        status -= IN_PREDICTION
+        what = what.replace("update", "prediction")
     if status == NOT_FINITE:
         raise FilterDivergence(f"{what} contains NaN or inf")
     if status == COV_NOT_FINITE:
         raise FilterDivergence("covariance contains NaN or inf")
     if status == NOT_PD:
         raise FilterDivergence("covariance not positive definite beyond repair")
-
-
-@jit.jit
-def cholesky(A, L):
-    """Lower Cholesky factor of the symmetric ``A`` into ``L``; False if not PD."""
-    n = A.shape[0]
-    for j in range(n):
-        d = A[j, j]
-        for k in range(j):
-            d -= L[j, k] * L[j, k]
-        if not d > 0.0:
-            return False
-        ljj = math.sqrt(d)
-        L[j, j] = ljj
-        for i in range(j):
-            L[i, j] = 0.0
-        for i in range(j + 1, n):
-            v = A[i, j]
-            for k in range(j):
-                v -= L[i, k] * L[j, k]
-            L[i, j] = v / ljj
-    return True
 
 
 @jit.jit
@@ -168,17 +177,13 @@ def cho_solve(L, B):
 
 
 @jit.jit
-def gain_and_nis(PHt, S, y):
-    """``(K, nis, repairs, status)``: ``K = P H' S^-1`` and ``y' S^-1 y`` from one factor of
-    ``S`` (repaired on a copy, as :func:`uwcosim.filters.numerics.gain_and_nis`)."""
+def gain_and_nis_into(PHt, S, y, L, B, K):
+    """``(nis, repairs, status)``: ``K = P H' S^-1`` and ``y' S^-1 y`` from one factor ``L`` of
+    ``S`` (``S`` repaired in place if needed; ``L``, ``B`` the work arrays of the solve)."""
     n, m = PHt.shape
-    S = S.copy()
-    L = np.zeros((m, m))
     repairs, status = factor(S, L)
-    K = np.empty((n, m))
     if status != OK:
-        return K, 0.0, repairs, status
-    B = np.empty((m, n + 1))
+        return 0.0, repairs, status
     for i in range(m):
         for j in range(n):
             B[i, j] = PHt[j, i]
@@ -189,7 +194,18 @@ def gain_and_nis(PHt, S, y):
         for j in range(n):
             K[j, i] = B[i, j]  # K = (S^-1 (P H')')'
         nis += y[i] * B[i, n]  # nis = y' S^-1 y
-    return K, nis, repairs, OK
+    return nis, repairs, OK
+
+
+@jit.jit
+def gain_and_nis(PHt, S, y):
+    """``(K, nis, repairs, status)``: ``K = P H' S^-1`` and ``y' S^-1 y`` from one factor of
+    ``S`` (repaired on a copy, as :func:`uwcosim.filters.numerics.gain_and_nis`)."""
+    n, m = PHt.shape
+    K = np.empty((n, m))
+    nis, repairs, status = gain_and_nis_into(PHt, S.copy(), y, np.empty((m, m)),
+                                             np.empty((m, n + 1)), K)
+    return K, nis, repairs, status
 
 
 @jit.jit
@@ -216,11 +232,12 @@ def finite(x, P):
 
 
 @jit.jit
-def select_rows(z, use, rows):
-    """The available components ``rows[:m]`` (finite and used); returns ``m``."""
+def select_rows(use, z, mask, rows):
+    """The available components ``rows[:m]``: finite, received (``mask``) and used by the
+    filter (``use``, the workspace's); returns ``m``."""
     m = 0
     for r in range(z.shape[0]):
-        if use[r] and math.isfinite(z[r]):
+        if use[r] != 0 and mask[r] and math.isfinite(z[r]):
             rows[m] = r
             m += 1
     return m
@@ -270,58 +287,89 @@ def ekf_predict(ws, x, P):
     """EKF prediction with the step's ``F``, ``b``, ``Q`` (in ``ws``); ``x``, ``P`` in place.
     Returns the status."""
     s = ws[0]
-    F, b, Q = s.F, s.b, s.Q
-    xp = mv(F, x) + b  # x = f(x, u) = F x + b
-    A = mm(mm(F, P), F.T) + Q  # P = F P F' + Q
+    F, b, Q, v, T, A = s.F, s.b, s.Q, s.v, s.T, s.A
+    mv_into(F, x, v)
+    for i in range(x.shape[0]):
+        x[i] = v[i] + b[i]  # x = f(x, u) = F x + b
+    add_into(mm_into(mm_into(F, P, T), F.T, A), Q)  # P = F P F' + Q
     symmetrize_into(A, P)
-    x[:] = xp
     return OK if finite(x, P) else NOT_FINITE
 
 
 @jit.jit
-def ekf_update(ws, table, x, P, z, use):
-    """EKF update (Joseph form) with the available components of ``z`` (finite and ``use``);
-    ``x``, ``P`` in place. Returns ``(status, nis, nis_dof, repairs)``."""
+def add_into(A, B):
+    """``A = A + B``; returns ``A``."""
+    for i in range(A.shape[0]):
+        for j in range(A.shape[1]):
+            A[i, j] = A[i, j] + B[i, j]
+    return A
+
+
+@jit.jit
+def ekf_update(ws, table, x, P, z, mask):
+    """EKF update (Joseph form) with the available components of ``z`` (finite, ``mask`` and
+    used); ``x``, ``P`` in place, the workspace's work arrays for the rest (their first ``m``
+    rows). Returns ``(status, nis, nis_dof, repairs)``."""
     s = ws[0]
-    n, nz = x.shape[0], z.shape[0]
-    rows = np.empty(nz, np.int64)
-    m = select_rows(z, use, rows)
+    n = x.shape[0]
+    m = select_rows(s.use, z, mask, s.rows)
     if m == 0:
         return NO_DATA, 0.0, 0.0, 0.0
-    hx = np.empty(m)
-    H = np.empty((m, n))
+    rows, hx, H, y, R = s.rows, s.hx[:m], s.H[:m], s.y[:m], s.Rm[:m, :m]
     measure(s, table, x, rows, m, hx, H)  # h(x) and H = dh/dx at the prior mean
-    y = np.empty(m)
     for k in range(m):
         y[k] = z[rows[k]] - hx[k]  # y = z - h(x)
-    R = np.empty((m, m))
     for a in range(m):
         for c in range(m):
             R[a, c] = s.R[rows[a], rows[c]]  # the available components' R
-    PHt = mm(P, H.T)
-    S = mm(H, PHt) + R  # S = H P H' + R
-    K, nis, repairs, status = gain_and_nis(PHt, S, y)  # K = P H' S^-1
+    PHt, S, K = s.PHt[:, :m], s.S[:m, :m], s.K[:, :m]
+    mm_into(P, H.T, PHt)
+    add_into(mm_into(H, PHt, S), R)  # S = H P H' + R
+    nis, repairs, status = gain_and_nis_into(PHt, S, y, s.L[:m, :m], s.B[:m],
+                                             K)  # K = P H' S^-1
     if status != OK:
         return status, 0.0, 0.0, repairs
-    x += mv(K, y)  # x = x + K y
-    IKH = np.eye(n) - mm(K, H)
-    A = mm(mm(IKH, P), IKH.T) + mm(mm(K, R), K.T)  # P = (I - K H) P (I - K H)' + K R K'
+    v, IKH, T, A, A2 = s.v, s.IKH, s.T, s.A, s.A2
+    mv_into(K, y, v)
+    for i in range(n):
+        x[i] = x[i] + v[i]  # x = x + K y
+    mm_into(K, H, IKH)
+    for i in range(n):
+        for j in range(n):
+            IKH[i, j] = (1.0 if i == j else 0.0) - IKH[i, j]  # I - K H
+    mm_into(mm_into(IKH, P, T), IKH.T, A)
+    add_into(A, mm_into(mm_into(K, R, s.KR[:, :m]), K.T, A2))  # P = (I-KH) P (I-KH)' + K R K'
     symmetrize_into(A, P)
     return (OK if finite(x, P) else NOT_FINITE), nis, float(m), repairs
 
 
-def compiled_workspace(est, model, extra: list[tuple] | None = None) -> Workspace | None:
-    """The workspace of a filter whose ``compiled`` setting is on (None: the numpy steps, also
-    when Numba is off, :data:`uwcosim.core.jit.ENABLED`); a one-line ValueError when the model
-    offers no compiled form, or with the chi-square gate (``gate_probability``), which only the
-    numpy step applies."""
+@jit.jit
+def ekf_step(ws, table, u, dt, z, mask):
+    """A whole EKF step on ``ws[0].x``, ``ws[0].P``: the model's transition (if compiled in),
+    :func:`ekf_predict`, then :func:`ekf_update`. Returns ``(status, nis, nis_dof, repairs)``,
+    a failed prediction's status plus :data:`IN_PREDICTION`."""
+    s = ws[0]
+    kinematics.write(s.motion, u, dt, s.params, s.F, s.b, s.Q)  # F, b, Q of the step
+    status = ekf_predict(ws, s.x, s.P)  # x = F x + b, P = F P F' + Q
+    if status != OK:
+        return status + IN_PREDICTION, 0.0, 0.0, 0.0
+    return ekf_update(ws, table, s.x, s.P, z, mask)  # x = x + K y, P = (I-KH) P (I-KH)' + K R K'
+
+
+def compiled_workspace(est, model, use: np.ndarray,
+                       extra: list[tuple] | None = None) -> Workspace | None:
+    """The workspace of a filter whose ``compiled`` setting is on, using the measurement
+    components ``use`` (None: the numpy steps, also when Numba is off,
+    :data:`uwcosim.core.jit.ENABLED`); a one-line ValueError when the model offers no compiled
+    form, or with the chi-square gate (``gate_probability``), which only the numpy step
+    applies."""
     # a subclass's own Settings (a user's filter derived from ours) may not declare it
     if not getattr(est.settings, "compiled", False) or not jit.ENABLED:
         return None
     if getattr(est.settings, "gate_probability", None) is not None:  # filters.gating: numpy only
         raise ValueError(f"estimator {est.kind}: compiled = true has no chi-square gate "
                          "(gate_probability); set one of them")
-    w = workspace(model, extra)
+    w = workspace(model, use, extra)
     if w is None:
         raise ValueError(
             f"estimator {est.kind}: compiled = true needs a model with a compiled form (a linear "

@@ -6,15 +6,18 @@ The equations of :class:`uwcosim.filters.sigma_point.SigmaPointFilter` as loops,
 scale ``s`` of the points ``x +- s L_i`` (``P = L L'``), whether the centre is a point, and the
 propagated points ``Y`` (the CUKF's unscented update uses them, not redrawn ones). The point
 set is the numpy step's bit for bit (``x_j + s L_ji``); moments, factorizations and solves agree
-with it to round-off (:mod:`uwcosim.filters.kalman_kernels` says why).
+with it to round-off (:mod:`uwcosim.filters.kalman_kernels` says why). The products are
+:mod:`uwcosim.filters.small_linalg`'s, weighted sums ``sum_i w_i a_i b_i'`` as ``(w a)' b``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from uwcosim.core import kinematics
 from uwcosim.core.jit import jit
 from uwcosim.filters import kalman_kernels as kk
+from uwcosim.filters.small_linalg import mm, mm_into, mv
 
 
 def rule_fields(n: int, npts: int) -> list[tuple]:
@@ -51,12 +54,11 @@ def moments(wm, wc, Y, mean, cov, D):
     for i in range(npts):
         for j in range(d):
             D[i, j] = Y[i, j] - mean[j]
-    for a in range(d):
-        for b in range(d):
-            v = 0.0
-            for i in range(npts):
-                v += (wc[i] * D[i, a]) * D[i, b]
-            cov[a, b] = v
+    W = np.empty((npts, d))
+    for i in range(npts):
+        for j in range(d):
+            W[i, j] = wc[i] * D[i, j]
+    mm_into(W.T, D, cov)  # cov = sum wc_i D_i D_i'
 
 
 @jit
@@ -73,12 +75,10 @@ def sigma_predict(ws, x, P):
     X = np.empty((npts, n))
     points(s, x, L, X)
     F, b, Y = s.F, s.b, s.Y
+    mm_into(X, F.T, Y)
     for i in range(npts):
         for a in range(n):
-            v = 0.0
-            for j in range(n):
-                v += F[a, j] * X[i, j]
-            Y[i, a] = v + b[a]  # Y_i = f(X_i, u) = F X_i + b
+            Y[i, a] = Y[i, a] + b[a]  # Y_i = f(X_i, u) = F X_i + b
     D = np.empty((npts, n))
     A = np.empty((n, n))
     moments(s.wm, s.wc, Y, x, A, D)  # x = sum wm_i Y_i
@@ -90,14 +90,14 @@ def sigma_predict(ws, x, P):
 
 
 @jit
-def sigma_update(ws, table, x, P, z, use, stored):
-    """Update with the available components of ``z``: points redrawn from ``(x, P)``, or the
-    propagated ``ws[0].Y`` if ``stored``; ``x``, ``P`` in place. Returns ``(status, nis,
-    nis_dof, repairs)``."""
+def sigma_update(ws, table, x, P, z, mask, stored):
+    """Update with the available components of ``z`` (finite, ``mask`` and used): points
+    redrawn from ``(x, P)``, or the propagated ``ws[0].Y`` if ``stored``; ``x``, ``P`` in
+    place. Returns ``(status, nis, nis_dof, repairs)``."""
     s = ws[0]
     n, nz = x.shape[0], z.shape[0]
     rows = np.empty(nz, np.int64)
-    m = kk.select_rows(z, use, rows)
+    m = kk.select_rows(s.use, z, mask, rows)
     if m == 0:
         return kk.NO_DATA, 0.0, 0.0, 0.0
     npts = s.wm.shape[0]
@@ -121,13 +121,11 @@ def sigma_update(ws, table, x, P, z, use, stored):
     for a in range(m):
         for c in range(m):
             S[a, c] += s.R[rows[a], rows[c]]  # S = Pzz + R
-    Pxz = np.empty((n, m))
-    for a in range(n):
-        for c in range(m):
-            v = 0.0
-            for i in range(npts):
-                v += (s.wc[i] * (X[i, a] - x[a])) * DZ[i, c]
-            Pxz[a, c] = v  # Pxz = sum wc_i (X_i - x)(Z_i - zhat)'
+    WX = np.empty((npts, n))
+    for i in range(npts):
+        for a in range(n):
+            WX[i, a] = s.wc[i] * (X[i, a] - x[a])
+    Pxz = mm(WX.T, DZ)  # Pxz = sum wc_i (X_i - x)(Z_i - zhat)'
     y = np.empty(m)
     for c in range(m):
         y[c] = z[rows[c]] - zhat[c]  # y = z - zhat
@@ -135,23 +133,23 @@ def sigma_update(ws, table, x, P, z, use, stored):
     repairs += more
     if status != kk.OK:
         return status, 0.0, 0.0, repairs
-    for a in range(n):
-        v = 0.0
-        for c in range(m):
-            v += K[a, c] * y[c]
-        x[a] += v  # x = x + K y
-    KS = np.zeros((n, m))
-    for a in range(n):
-        for k in range(m):
-            v = K[a, k]
-            for c in range(m):
-                KS[a, c] += v * S[k, c]
-    A = np.empty((n, n))
-    for a in range(n):
-        for b in range(n):
-            v = 0.0
-            for c in range(m):
-                v += KS[a, c] * K[b, c]
-            A[a, b] = P[a, b] - v  # P = P - K S K'
+    x += mv(K, y)  # x = x + K y
+    A = P - mm(mm(K, S), K.T)  # P = P - K S K'
     kk.symmetrize_into(A, P)
     return (kk.OK if kk.finite(x, P) else kk.NOT_FINITE), nis, float(m), repairs
+
+
+@jit
+def sigma_step(ws, table, u, dt, z, mask):
+    """A whole step of the UKF/CKF on ``ws[0].x``, ``ws[0].P``: the model's transition (if
+    compiled in), :func:`sigma_predict`, then :func:`sigma_update` on redrawn points. Returns
+    ``(status, nis, nis_dof, repairs)``, a failed prediction's status plus
+    :data:`~uwcosim.filters.kalman_kernels.IN_PREDICTION`."""
+    s = ws[0]
+    kinematics.write(s.motion, u, dt, s.params, s.F, s.b, s.Q)  # F, b, Q of the step
+    x, P = s.x, s.P
+    status, repairs = sigma_predict(ws, x, P)  # Y_i = f(X_i, u), x = sum wm_i Y_i, P
+    if status != kk.OK:
+        return status + kk.IN_PREDICTION, 0.0, 0.0, repairs
+    status, nis, dof, more = sigma_update(ws, table, x, P, z, mask, False)  # K, x, P
+    return status, nis, dof, repairs + more

@@ -129,7 +129,8 @@ class SigmaPointFilter(CompiledUpdate, FilterBase):
     def rule_workspace(self, rule: SigmaRule) -> Workspace | None:
         """The compiled step's workspace for ``rule`` (None unless ``compiled``)."""
         npts = rule.wm.size
-        w = compiled_workspace(self, self.model, sigma_kernels.rule_fields(rule.n, npts))
+        w = compiled_workspace(self, self.model, self._use,
+                               sigma_kernels.rule_fields(rule.n, npts))
         if w is not None:
             s = w.ws[0]
             s["wm"], s["wc"], s["scale"], s["center"] = rule.wm, rule.wc, rule.scale, rule.center
@@ -184,6 +185,13 @@ class SigmaPointFilter(CompiledUpdate, FilterBase):
             self._compiled_predict(self.workspace, u, dt)
             return
         self._propagate(self._points(self.rule), self.rule, u, dt)
+
+    def step(self, u, dt: float, z, mask=None, t: float | None = None) -> None:
+        w = self.workspace
+        if w is None:
+            super().step(u, dt, z, mask, t)
+            return
+        self._compiled_step(sigma_kernels.sigma_step, w, u, dt, z, mask, t)  # predict, update
 
     def update(self, z, mask=None) -> None:
         if self.workspace is not None:
@@ -300,6 +308,9 @@ class CubatureUnscentedKalmanFilter(SigmaPointFilter):
         Y = self._propagate(self._points(rule), rule, u, dt)
         self._propagated = Y if self._unscented_cycle and not self.redraw else None
         self.diagnostics["cubature_step"] = 0.0 if self._unscented_cycle else 1.0
+
+    def step(self, u, dt: float, z, mask=None, t: float | None = None) -> None:
+        FilterBase.step(self, u, dt, z, mask, t)  # predict, update: the cycles alternate
 
     def sigma_rule(self, n: int) -> SigmaRule:
         a = self.settings.a

@@ -51,6 +51,11 @@ class CompiledForm(NamedTuple):
     the two states ``surface_states`` stored as per-cell bicubic polynomials
     (:mod:`uwcosim.core.bicubic`: ``table`` and its ``surface`` geometry), the terrain depth of
     a TAN model; ``-1`` for none (``table`` is then a dummy).
+
+    ``motion`` names the transition when it is one of the compiled transitions of
+    :mod:`uwcosim.core.kinematics` (its code, with its ``params``): a compiled step then
+    evaluates it inside its own call; :data:`~uwcosim.core.kinematics.GIVEN` (the default): the
+    step calls ``transition`` first.
     """
 
     transition: Callable[..., None]
@@ -59,3 +64,5 @@ class CompiledForm(NamedTuple):
     surface_states: tuple[int, int]
     surface: Surface
     table: np.ndarray
+    motion: int = 0  #: a transition code of :mod:`uwcosim.core.kinematics` (0: GIVEN)
+    params: tuple[float, ...] = ()  #: the parameters of ``motion``

@@ -44,9 +44,9 @@ import weakref
 import casadi as ca
 import numpy as np
 
-from uwcosim.core import bspline, jit
+from uwcosim.core import bspline, jit, kinematics
 from uwcosim.core.bicubic import Surface
-from uwcosim.models import tan_kernels, terrain_kernels  # compiled (importing loads no Numba)
+from uwcosim.models import terrain_kernels  # compiled (importing loads no Numba)
 from uwcosim.models.auv_equations import STATE_NAMES, vehicle_ode
 from uwcosim.models.casadi_model import CasadiModel
 from uwcosim.models.protocol import CompiledForm
@@ -398,8 +398,8 @@ class TANModel:
 
     def compiled_form(self) -> CompiledForm | None:
         """The model for the compiled Kalman steps (:class:`~uwcosim.models.protocol.
-        CompiledForm`): the compiled transition (:func:`uwcosim.models.tan_kernels.
-        transition`), the DVL rows and the terrain row as a table surface. None with control
+        CompiledForm`): the compiled transition (:func:`uwcosim.core.kinematics.heading_step`,
+        code ``HEADING``), the DVL rows and the terrain row as a table surface. None with control
         noise (``Q`` then depends on the state) or a map too large for the table."""
         if self.control_psd is not None:
             return None
@@ -414,9 +414,10 @@ class TANModel:
         psd = self.q_psd
 
         def transition(u, dt, F, b, Q):  # the compiled f and F of the step
-            tan_kernels.transition(u, dt, psd, F, b, Q)
+            kinematics.heading_step(u, dt, psd, F, b, Q)
 
-        return CompiledForm(transition, H0, row, (0, 1), surface, table)
+        return CompiledForm(transition, H0, row, (0, 1), surface, table, kinematics.HEADING,
+                            tuple(float(v) for v in psd))
 
     def h_batch(self, X: np.ndarray) -> np.ndarray:
         out = np.empty((X.shape[0], self.nz), order="F")

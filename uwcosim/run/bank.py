@@ -276,14 +276,22 @@ class EstimatorBank:
         xshape, pshape = (n,), (n, n)
         for a, tr in enumerate(active):
             est = tr.estimator
+            # ours: one call per step (the compiled Kalman filters fuse predict and update);
+            # the policy does not depend on the estimator, so it may come first
+            whole = isinstance(est, Estimator)
             for j, st in enumerate(steps):
                 t0 = time.perf_counter()
                 try:
-                    est.predict(st.u, st.dt)
-                    est.t = st.t
-                    z_in, mask = tr.policy(st.t, st.z, st.received & tr.use)
-                    mask = np.asarray(mask, dtype=bool) & tr.use
-                    est.update(z_in if mask.any() else None, mask)
+                    if whole:
+                        z_in, mask = tr.policy(st.t, st.z, st.received & tr.use)
+                        mask = np.asarray(mask, dtype=bool) & tr.use
+                        est.step(st.u, st.dt, z_in if mask.any() else None, mask, st.t)
+                    else:
+                        est.predict(st.u, st.dt)
+                        est.t = st.t
+                        z_in, mask = tr.policy(st.t, st.z, st.received & tr.use)
+                        mask = np.asarray(mask, dtype=bool) & tr.use
+                        est.update(z_in if mask.any() else None, mask)
                     try:
                         shaped = est.x.shape == xshape and est.P.shape == pshape
                     except AttributeError:  # not arrays: the slow check below words it

@@ -13,6 +13,8 @@ spectral basis or a grid, and run a Kalman filter for the others.
 - ``estimator``: the frame of both filters (``GridFilter``: the partition, the Kalman block and
   the likelihood built once, ``predict`` and ``update`` around the filter's own density and
   steps);
-- ``moments``: mean and covariance of a density on a tensor grid (numpy and compiled forms);
-- ``small_linalg``: compiled loops for the small matrices of the steps.
+- ``moments``: mean and covariance of a density on a tensor grid (numpy and compiled forms).
+
+The compiled loops for the small matrices of their steps are :mod:`uwcosim.filters.small_linalg`
+(the Kalman family's compiled steps use them too).
 """

@@ -9,7 +9,7 @@ the fused steps of PFM-PSI call them from compiled code. Arguments are the bundl
 place), :class:`KalmanRows` (its measurement rows) and :class:`ModelStep` (the model's
 one-step map at the estimate), passed as the NamedTuples or as plain tuples of their fields
 (:mod:`uwcosim.core.jit`). IEEE arithmetic in
-source order; the small products are loops (:mod:`uwcosim.filters.grid.small_linalg`).
+source order; the small products are loops (:mod:`uwcosim.filters.small_linalg`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from typing import NamedTuple
 import numpy as np
 
 from uwcosim.core.jit import jit
-from uwcosim.filters.grid.small_linalg import chol_ok, mm, mv, sandwich, solve, sym
+from uwcosim.filters.small_linalg import chol_ok, mm, mv, sandwich, solve, sym
 
 
 class KalmanBlock(NamedTuple):

@@ -22,10 +22,10 @@ from uwcosim.core import bspline
 from uwcosim.core.errors import FilterDivergence
 from uwcosim.core.jit import jit
 from uwcosim.core.reductions import sum2
-from uwcosim.filters.grid.small_linalg import sym
 from uwcosim.filters.point_mass.fft import FFTPlan, fast_len
 from uwcosim.filters.point_mass.grid import GridDensity, scale_values
 from uwcosim.filters.point_mass.prediction import SPLINE_PAD, Prediction
+from uwcosim.filters.small_linalg import sym
 
 TWO_PI = 2.0 * np.pi
 

@@ -19,10 +19,10 @@ import math
 
 from uwcosim.core.jit import jit
 from uwcosim.filters.grid.conditional_kernels import assemble, kalman_increment
-from uwcosim.filters.grid.small_linalg import sym
 from uwcosim.filters.projection.prediction import Prediction, gaussian_fallback
 from uwcosim.filters.projection.series import SeriesDensity
 from uwcosim.filters.projection.series_kernels import box, shift_decay_mass
+from uwcosim.filters.small_linalg import sym
 
 
 @jit

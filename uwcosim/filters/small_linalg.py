@@ -1,9 +1,14 @@
-"""Compiled loops for the small matrices (2 x 2 to 4 x 4) of the grid filters' steps.
+"""Compiled loops for the small matrices (2 x 2 to 9 x 4) of the filters' compiled steps.
 
-At these sizes a loop is cheaper than a BLAS call: products, a symmetric part, a Cholesky test
-and a solve by Gaussian elimination with partial pivoting (the pivots LAPACK's ``gesv``
-chooses). Used by the conditional Kalman block (:mod:`uwcosim.filters.grid.conditional_kernels`)
-and the grid filters' predictions. IEEE arithmetic in source order (:mod:`uwcosim.core.jit`).
+At these sizes a loop is cheaper than a BLAS call: products (into a new array, ``mm``/``mv``,
+or into the caller's work array, ``mm_into``/``mv_into``: an allocation costs about 50 ns, as
+much as a 4 x 4 product), a symmetric part, the Cholesky factor and its test, and a solve by
+Gaussian elimination with partial pivoting (the pivots LAPACK's ``gesv`` chooses). Used by the
+compiled Kalman steps (:mod:`uwcosim.filters.kalman_kernels`,
+:mod:`uwcosim.filters.sigma_kernels`), the conditional Kalman block
+(:mod:`uwcosim.filters.grid.conditional_kernels`) and the grid filters' predictions. IEEE
+arithmetic in source order (:mod:`uwcosim.core.jit`): a product sums over the inner index in
+order from 0.0, whichever form computes it.
 """
 
 from __future__ import annotations
@@ -27,23 +32,33 @@ def sym(A):
 
 
 @jit
-def chol_ok(S):
-    """Whether the symmetric ``S`` (lower triangle) is positive definite (Cholesky)."""
-    n = S.shape[0]
-    L = np.zeros((n, n))
+def cholesky(A, L):
+    """Lower Cholesky factor of the symmetric ``A`` (its lower triangle) into ``L`` (zeros
+    above the diagonal); False, ``L`` partly written, if ``A`` is not positive definite."""
+    n = A.shape[0]
     for j in range(n):
-        d = S[j, j]
+        d = A[j, j]
         for k in range(j):
             d -= L[j, k] * L[j, k]
         if not d > 0.0:
             return False
-        L[j, j] = math.sqrt(d)
+        ljj = math.sqrt(d)
+        L[j, j] = ljj
+        for i in range(j):
+            L[i, j] = 0.0
         for i in range(j + 1, n):
-            v = S[i, j]
+            v = A[i, j]
             for k in range(j):
                 v -= L[i, k] * L[j, k]
-            L[i, j] = v / L[j, j]
+            L[i, j] = v / ljj
     return True
+
+
+@jit
+def chol_ok(S):
+    """Whether the symmetric ``S`` (lower triangle) is positive definite (Cholesky)."""
+    n = S.shape[0]
+    return cholesky(S, np.empty((n, n)))
 
 
 @jit
@@ -80,10 +95,12 @@ def solve(A, B):
 
 
 @jit
-def mm(A, B):
-    """``A @ B`` by loops."""
+def mm_into(A, B, out):
+    """``out = A @ B`` by loops (``out`` apart from ``A`` and ``B``); returns ``out``."""
     n, m, p = A.shape[0], A.shape[1], B.shape[1]
-    out = np.zeros((n, p))
+    for i in range(n):
+        for j in range(p):
+            out[i, j] = 0.0
     for i in range(n):
         for k in range(m):
             a = A[i, k]
@@ -93,13 +110,25 @@ def mm(A, B):
 
 
 @jit
-def mv(A, x):
-    """``A @ x`` by loops."""
-    out = np.zeros(A.shape[0])
+def mm(A, B):
+    """``A @ B`` by loops (a new array)."""
+    return mm_into(A, B, np.empty((A.shape[0], B.shape[1])))
+
+
+@jit
+def mv_into(A, x, out):
+    """``out = A @ x`` by loops (``out`` apart from ``x``); returns ``out``."""
     for i in range(A.shape[0]):
+        out[i] = 0.0
         for k in range(A.shape[1]):
             out[i] += A[i, k] * x[k]
     return out
+
+
+@jit
+def mv(A, x):
+    """``A @ x`` by loops (a new array)."""
+    return mv_into(A, x, np.empty(A.shape[0]))
 
 
 @jit

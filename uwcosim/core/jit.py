@@ -4,8 +4,13 @@ Kernels are plain Python functions decorated with :func:`jit` (or :func:`jit_fas
 imported, and every registered kernel bound to its compiled version, at the first call of any
 kernel, not at import (about 0.5 s that scenarios without compiled kernels do not pay).
 Compiled kernels are cached on disk (``cache=True``), so campaign worker processes load them
-instead of compiling. Without Numba, or with ``UWCOSIM_NUMBA=0``, :data:`ENABLED` is False
-and the filters run their numpy forms.
+instead of compiling. The cache is a folder of its own per version of the kernels'
+sources (:func:`kernel_cache_dir`: ``$XDG_CACHE_HOME/uwcosim/numba/<digest>``, unless
+``NUMBA_CACHE_DIR`` is set): Numba's index of a kernel follows its own file only, so a
+kernel that inlines another module's kernel (``core.bicubic``, ``filters.small_linalg``)
+would load stale machine code after that module changed, or fail after it moved. Without
+Numba, or with ``UWCOSIM_NUMBA=0``, :data:`ENABLED` is False and the filters run their numpy
+forms.
 
 The arithmetic is IEEE in source order (no fast-math): a kernel compiled afresh and the same
 kernel loaded from the cache give the same bits (``tests/test_kernel_determinism.py``). The
@@ -30,8 +35,13 @@ plain tuples: Numba's dispatcher types an exact tuple in C in about 0.05 us, a N
 from __future__ import annotations
 
 import functools
+import hashlib
 import importlib.util
 import os
+import sys
+from pathlib import Path
+
+from uwcosim.core.paths import cache_dir
 
 ENABLED = (importlib.util.find_spec("numba") is not None
            and os.environ.get("UWCOSIM_NUMBA", "1") != "0")
@@ -55,16 +65,46 @@ def _compile_all() -> None:
     listen(_announce)  # once: _PLAIN is empty after this
     compiled = {}
     spaces = {}
-    for fn, fastmath, stub in _PLAIN:
-        njit = numba.njit(cache=True, nogil=True, error_model="numpy", fastmath=fastmath)
-        compiled[id(stub)] = (stub, njit(fn))
-        spaces[id(fn.__globals__)] = fn.__globals__
+    user_dir = numba.config.CACHE_DIR
+    # the locator of a kernel's cache is chosen when its dispatcher is made: set only for ours
+    numba.config.CACHE_DIR = user_dir or str(kernel_cache_dir(numba.__version__))
+    try:
+        for fn, fastmath, stub in _PLAIN:
+            njit = numba.njit(cache=True, nogil=True, error_model="numpy", fastmath=fastmath)
+            compiled[id(stub)] = (stub, njit(fn))
+            spaces[id(fn.__globals__)] = fn.__globals__
+    finally:
+        numba.config.CACHE_DIR = user_dir
     for g in spaces.values():
         for name, value in list(g.items()):
             hit = compiled.get(id(value))
             if hit is not None and hit[0] is value:
                 g[name] = hit[1]
     _PLAIN.clear()
+
+
+def kernel_cache_dir(numba_version: str, package: Path | None = None) -> Path:
+    """The on-disk cache of this version of the kernels: a folder named by a SHA-256 over
+    Numba's version and the sources of every kernel module (the package's files that import
+    :func:`jit`, and any other module whose kernels are being bound), under
+    :func:`uwcosim.core.paths.cache_dir`. Any change to a kernel module starts a new cache
+    (every kernel compiles once, 1-3 min); older folders can be deleted. ``package``: the
+    folder searched for kernel modules (default: uwcosim's)."""
+    package = Path(__file__).resolve().parents[1] if package is None else package
+    sources = {}
+    for path in sorted(package.rglob("*.py")):
+        text = path.read_bytes()
+        if b"core.jit import" in text:  # a module that makes kernels
+            sources[path.relative_to(package).as_posix()] = text
+    for fn, _, _ in _PLAIN:  # a user's kernels (``uwcosim.core.jit`` from a plug-in)
+        file = Path(sys.modules[fn.__module__].__file__).resolve()
+        if not file.is_relative_to(package):
+            sources.setdefault(str(file), file.read_bytes())
+    digest = hashlib.sha256(numba_version.encode())
+    for name, text in sources.items():
+        digest.update(f"{name}\0{len(text)}\0".encode())
+        digest.update(text)
+    return cache_dir() / "numba" / digest.hexdigest()[:16]
 
 
 def _announce(kernel: str) -> None:

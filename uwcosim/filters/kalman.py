@@ -25,6 +25,9 @@ LAPACK solve, no fancy indexing when every measurement component is used.
 
 from __future__ import annotations
 
+from types import ModuleType
+from typing import ClassVar
+
 import numpy as np
 from pydantic import Field, StrictBool
 
@@ -50,6 +53,18 @@ def compiled_field():
 class CompiledUpdate:
     """The compiled halves and whole steps (a mixin of :class:`FilterBase` subclasses): the
     bookkeeping of ``FilterBase._begin_update`` and the diagnostics around one kernel call."""
+
+    #: the kernel of a compiled whole step, by module and name (looked up at each call, so
+    #: that the compiled kernel is reached once bound); None: ``predict``, then ``update``
+    whole_step: ClassVar[tuple[ModuleType, str] | None] = None
+
+    def step(self, u, dt: float, z, mask=None, t: float | None = None) -> None:
+        w = self.workspace
+        if w is None or self.whole_step is None:
+            super().step(u, dt, z, mask, t)
+            return
+        module, name = self.whole_step
+        self._compiled_step(getattr(module, name), w, u, dt, z, mask, t)  # predict, update
 
     def _compiled_update(self, kernel, w, z, mask, *extra) -> None:
         """``kernel(ws, table, x, P, z, mask, *extra) -> (status, nis, nis_dof, repairs)``."""
@@ -112,6 +127,8 @@ class CompiledUpdate:
 class ExtendedKalmanFilter(CompiledUpdate, FilterBase):
     """EKF: ``x = f(x, u)``, ``P = F P F' + Q``; update with ``H = dh/dx`` at the prior mean."""
 
+    whole_step = (kalman_kernels, "ekf_step")
+
     class Settings(FilterSettings):
         measurements: Measurements = measurements_field()
         compiled: StrictBool = compiled_field()
@@ -138,13 +155,6 @@ class ExtendedKalmanFilter(CompiledUpdate, FilterBase):
         P += Q
         self.P = symmetrize_(P)  # P = F P F' + Q
         self._check("prediction")
-
-    def step(self, u, dt: float, z, mask=None, t: float | None = None) -> None:
-        w = self.workspace
-        if w is None:
-            super().step(u, dt, z, mask, t)
-            return
-        self._compiled_step(kalman_kernels.ekf_step, w, u, dt, z, mask, t)  # predict, update
 
     def update(self, z, mask=None) -> None:
         if self.workspace is not None:

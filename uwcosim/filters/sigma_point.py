@@ -115,6 +115,8 @@ class SigmaPointFilter(CompiledUpdate, FilterBase):
     """Predict/update of a sigma-point filter for the :class:`SigmaRule` of
     :meth:`sigma_rule`."""
 
+    whole_step = (sigma_kernels, "sigma_step")
+
     class Settings(FilterSettings):
         measurements: Measurements = measurements_field()
         compiled: StrictBool = compiled_field()
@@ -185,13 +187,6 @@ class SigmaPointFilter(CompiledUpdate, FilterBase):
             self._compiled_predict(self.workspace, u, dt)
             return
         self._propagate(self._points(self.rule), self.rule, u, dt)
-
-    def step(self, u, dt: float, z, mask=None, t: float | None = None) -> None:
-        w = self.workspace
-        if w is None:
-            super().step(u, dt, z, mask, t)
-            return
-        self._compiled_step(sigma_kernels.sigma_step, w, u, dt, z, mask, t)  # predict, update
 
     def update(self, z, mask=None) -> None:
         if self.workspace is not None:
@@ -271,6 +266,8 @@ class CubatureUnscentedKalmanFilter(SigmaPointFilter):
       ``P = P - K P_zz K'`` (sign as in (16)).
     """
 
+    whole_step = None  # predict, then update: the cycles alternate
+
     class Settings(FilterSettings):
         a: StrictFloat | None = Field(None, gt=0, description="sigma-point scale of eq. (7) "
                                       "(default sqrt(3/L))")
@@ -308,9 +305,6 @@ class CubatureUnscentedKalmanFilter(SigmaPointFilter):
         Y = self._propagate(self._points(rule), rule, u, dt)
         self._propagated = Y if self._unscented_cycle and not self.redraw else None
         self.diagnostics["cubature_step"] = 0.0 if self._unscented_cycle else 1.0
-
-    def step(self, u, dt: float, z, mask=None, t: float | None = None) -> None:
-        FilterBase.step(self, u, dt, z, mask, t)  # predict, update: the cycles alternate
 
     def sigma_rule(self, n: int) -> SigmaRule:
         a = self.settings.a

@@ -123,10 +123,16 @@ def _how(status: int) -> str:
     return f"the process exited with status {os.waitstatus_to_exitcode(status)}"
 
 
+def enabled() -> bool:
+    """Whether commands run in a supervised child: a platform that forks, and
+    ``UWCOSIM_SUPERVISE`` not ``0``."""
+    return hasattr(os, "fork") and os.environ.get("UWCOSIM_SUPERVISE", "1") != "0"
+
+
 def supervise(command: Callable[[], int]) -> int | Death:
     """Run ``command`` in a forked child and return its exit status, or the :class:`Death` of
     a child that did not choose one (see the module docstring)."""
-    if not hasattr(os, "fork") or os.environ.get("UWCOSIM_SUPERVISE", "1") == "0":
+    if not enabled():
         return command()
     child = Child(command)
     try:
@@ -273,7 +279,7 @@ def supervised_map(func: Callable[[T], object], items: Sequence[T]
     stops as a run does): :class:`~uwcosim.core.errors.RunInterrupted` with the exit status
     128 + signal; the item in progress is not yielded. ``UWCOSIM_SUPERVISE=0``: in this
     process."""
-    if not hasattr(os, "fork") or os.environ.get("UWCOSIM_SUPERVISE", "1") == "0":
+    if not enabled():
         for i, item in enumerate(items):
             yield i, func(item)
         return

@@ -26,9 +26,6 @@ Exponentials of whole grids stay in numpy (its SIMD ``exp`` is several times fas
 compiled scalar loop).
 """
 
-# (kalman_step runs on uwcosim.filters.small_linalg, moved there from filters.grid: a Numba
-# cache does not follow its dependencies, so this file changed with it and recompiles)
-
 from __future__ import annotations
 
 import math

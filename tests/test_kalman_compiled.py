@@ -257,3 +257,40 @@ def test_whole_step_on_a_linear_model():
     assert est.workspace.given
     np.testing.assert_allclose(out[1][0], out[0][0], rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(out[1][1], out[0][1], rtol=1e-12, atol=1e-15)
+
+
+def test_exact_is_the_one_type_of_the_entry_points():
+    """:func:`kalman_kernels.exact` accepts only what the entry points were resolved for: a
+    native, C-contiguous, writeable, aligned array of the dtype and dimensions asked for."""
+    from uwcosim.filters.kalman_kernels import BOOL, F8, exact
+
+    a = np.zeros(4)
+    readonly = np.zeros(4)
+    readonly.flags.writeable = False
+    assert exact(a, F8, 1) and exact(np.ones(3, dtype=bool), BOOL, 1)
+    assert exact(np.zeros((4, 4)), F8, 2)
+    for other, ndim in ((np.zeros(8)[::2], 1), (readonly, 1), (np.zeros(4, dtype=">f8"), 1),
+                        (np.zeros(4, int), 1), (np.zeros((4, 1)), 1), ([0.0] * 4, 1),
+                        (np.asfortranarray(np.ones((4, 3))), 2), (np.zeros(4, np.float32), 1)):
+        assert not exact(other, F8, ndim), other
+    assert not exact(np.zeros(3), BOOL, 1) and not exact(np.zeros((4, 4)), F8, 1)
+
+
+@needs_numba
+@pytest.mark.parametrize("kind", ["ekf", "ukf", "cukf"])
+def test_entry_points_are_the_dispatchers_bits(model, data, kind):
+    """The steps call their kernels' entry points (no dispatcher); arguments of another type
+    (here a strided ``z`` and an F-ordered ``P``) go through the dispatcher: the same bits."""
+    zs, x0 = data
+    a = ESTIMATORS.get(kind)(model, x0, np.diag(STD0**2), compiled=True)
+    b = ESTIMATORS.get(kind)(model, x0, np.diag(STD0**2), compiled=True)
+    for k in range(60):
+        mask = None if k % 3 else np.array([True, True, False])
+        a.step(controls(k), 1.0, zs[k], mask)
+        # from step 10 (the entry points are resolved at the first): the same values, strided
+        z = zs[k] if k < 10 else np.repeat(zs[k], 2)[::2]
+        if k == 30 and kind == "cukf":  # the halves take the filter's own P
+            b.P = np.asfortranarray(b.P)
+        b.step(controls(k), 1.0, z, mask)
+        assert np.array_equal(a.x, b.x) and np.array_equal(a.P, b.P), k
+    assert a.workspace.entries

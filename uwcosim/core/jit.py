@@ -150,6 +150,19 @@ def bound(kernel):
     return fn.__globals__[fn.__name__]
 
 
+def entry_point(kernel, args: tuple):
+    """The compiled entry point of the registered ``kernel`` for the Numba types of ``args``,
+    loaded from the on-disk cache or compiled as a first call would (imports Numba: call it only
+    when :data:`ENABLED`). Calling it skips the dispatcher, which costs a per-step caller of the
+    Kalman steps 0.3-2 us per call (:mod:`uwcosim.filters.kalman_kernels`; the larger figure in
+    a filter's step loop, ``benchmarks/bench_filters.py --dispatch``). It checks nothing: its
+    caller passes arguments of exactly those types on every call, or calls the kernel itself
+    when one may differ."""
+    from numba.core.typing.typeof import Purpose, typeof
+
+    return bound(kernel).compile(tuple(typeof(a, Purpose.argument) for a in args))
+
+
 def interrupted(exc: BaseException) -> bool:
     """Whether ``exc`` is a KeyboardInterrupt that a compiled kernel wrapped: Ctrl-C landing in
     the Python code Numba runs while it returns arrays surfaces as a ``SystemError`` caused by

@@ -34,7 +34,14 @@ from pydantic import Field, StrictBool
 from uwcosim.filters import kalman_kernels
 from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.gating import GateProbability, gate_field
-from uwcosim.filters.kalman_kernels import NO_DATA, compiled_workspace, raise_for_status
+from uwcosim.filters.kalman_kernels import (
+    BOOL,
+    F8,
+    NO_DATA,
+    compiled_workspace,
+    exact,
+    raise_for_status,
+)
 from uwcosim.filters.numerics import (
     gain_and_nis,
     joseph_update,
@@ -75,7 +82,12 @@ class CompiledUpdate:
             return
         z = np.asarray(z, dtype=float)
         mask = w.everything if mask is None else np.asarray(mask, dtype=bool)
-        status, nis, dof, repairs = kernel(w.ws, w.table, self.x, self.P, z, mask, *extra)
+        args = (w.table, self.x, self.P, z, mask, *extra)
+        if exact(self.x, F8, 1) and exact(self.P, F8, 2) and exact(z, F8, 1) and \
+                exact(mask, BOOL, 1):
+            status, nis, dof, repairs = w.call(kernel, *args)
+        else:  # the dispatcher types (and checks) them
+            status, nis, dof, repairs = kernel(w.ws, *args)
         d = self.diagnostics
         if repairs:
             d["pd_repairs"] += repairs
@@ -114,7 +126,11 @@ class CompiledUpdate:
                 mask = w.everything
             elif type(mask) is not np.ndarray:
                 mask = np.asarray(mask, dtype=bool)
-        status, nis, dof, repairs = kernel(w.ws, w.table, u, float(dt), z, mask)
+        if (u is w.nothing or exact(u, F8, 1)) and (z is w.nothing or exact(z, F8, 1)) and \
+                (mask is w.everything or exact(mask, BOOL, 1)):
+            status, nis, dof, repairs = w.call(kernel, w.table, u, float(dt), z, mask)
+        else:  # the dispatcher types (and checks) them
+            status, nis, dof, repairs = kernel(w.ws, w.table, u, float(dt), z, mask)
         if status == 0:
             self.diagnostics = {"pd_repairs": repairs, "nis": nis, "nis_dof": dof}
             return
@@ -145,7 +161,11 @@ class ExtendedKalmanFilter(CompiledUpdate, FilterBase):
         w = self.workspace
         if w is not None:
             w.transition(u, float(dt), w.F, w.b, w.Q)  # F, b, Q of the step (the model's)
-            status = kalman_kernels.ekf_predict(w.ws, self.x, self.P)  # x = F x + b, F P F' + Q
+            kernel = kalman_kernels.ekf_predict  # x = F x + b, P = F P F' + Q
+            if exact(self.x, F8, 1) and exact(self.P, F8, 2):
+                status = w.call(kernel, self.x, self.P)
+            else:  # the dispatcher types (and checks) them
+                status = kernel(w.ws, self.x, self.P)
             if status:
                 raise_for_status(status, f"{self.kind} prediction")
             return

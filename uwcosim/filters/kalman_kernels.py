@@ -12,7 +12,12 @@ The filter's constant data and its per-step scratch travel in one named bundle, 
 :class:`Workspace`: a one-element structured array whose fields (``ws[0].F``, ``ws[0].Q``,
 ``ws[0].H0`` ...) the kernels read by name. It is the one argument bundle Numba's dispatcher
 types cheaply: a NamedTuple of arrays costs 0.3-0.5 us per field at every call, a structref 3 us
-and uncached, a structured array about 0.1 us (``benchmarks/bench_filters.py`` times the step).
+and uncached, a structured array about 0.1 us, provided its dtype is the very object the
+dispatcher first met (an equal dtype object costs numpy's comparison of the fields, about 2 us
+per call): a layout has one dtype object (:func:`workspace_dtype`). The steps skip the
+dispatcher altogether: :meth:`Workspace.call` calls a kernel's compiled entry point for the
+types of its arguments, 0.3 us per call against 0.6 us through the dispatcher
+(``benchmarks/kalman_call.py``; ``benchmarks/bench_filters.py`` times the step).
 The mean ``x`` and covariance ``P`` are the filter's own arrays, updated in place; a whole step
 (:func:`ekf_step`) keeps them in the bundle too (``ws[0].x``, ``ws[0].P``: the filter's ``x``
 and ``P`` are then views of them), two arguments fewer per call.
@@ -30,6 +35,7 @@ is repeated here; a step reports what went wrong as a status code that
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from typing import NamedTuple
@@ -63,6 +69,31 @@ class Workspace(NamedTuple):
     given: bool  #: the model's transition is not compiled in: call it before a whole step
     everything: np.ndarray  #: the mask of every measurement component (``mask=None``)
     nothing: np.ndarray  #: no measurement: ``z`` of NaN, for a step with ``z=None``
+    entries: dict  #: the kernels' compiled entry points for these types, by kernel (:meth:`call`)
+
+    def call(self, kernel, *args):
+        """``kernel(ws, *args)`` through its compiled entry point for the types of this call,
+        resolved at the first (:func:`uwcosim.core.jit.entry_point`): the dispatcher is skipped.
+        The caller checks first that ``args`` keep those types (:func:`exact`; ``ws`` and
+        ``table`` are this workspace's), or calls ``kernel`` itself."""
+        entry = self.entries.get(kernel)
+        if entry is None:
+            entry = self.entries[kernel] = jit.entry_point(kernel, (self.ws, *args))
+        return entry(self.ws, *args)
+
+
+F8 = np.dtype(np.float64)
+BOOL = np.dtype(np.bool_)
+
+
+def exact(a, dtype: np.dtype, ndim: int) -> bool:
+    """Whether ``a`` is of the one Numba type that :meth:`Workspace.call` resolves for an array
+    argument: an ndarray of ``dtype`` (native order) and ``ndim`` dimensions, C-contiguous,
+    writeable and aligned."""
+    if type(a) is not np.ndarray or a.dtype is not dtype or a.ndim != ndim:
+        return False
+    flags = a.flags
+    return flags.c_contiguous and flags.writeable and flags.aligned
 
 
 def workspace_fields(n: int, nz: int, npar: int) -> list[tuple]:
@@ -82,6 +113,14 @@ def workspace_fields(n: int, nz: int, npar: int) -> list[tuple]:
             ("A2", "f8", (n, n)), ("IKH", "f8", (n, n))]
 
 
+@functools.cache
+def workspace_dtype(fields: tuple) -> np.dtype:
+    """The one dtype object of a workspace layout: Numba's dispatcher keys its type of a
+    structured array by the dtype object, and another object of an equal dtype costs numpy's
+    comparison of every field at every call, about 2 us (``benchmarks/kalman_call.py``)."""
+    return np.dtype(list(fields), align=True)
+
+
 def workspace(model, use: np.ndarray, extra: list[tuple] | None = None) -> Workspace | None:
     """The :class:`Workspace` of ``model`` (None when it offers no compiled form) for a filter
     using the measurement components ``use``, with the ``extra`` fields of a filter (e.g. a
@@ -92,8 +131,8 @@ def workspace(model, use: np.ndarray, extra: list[tuple] | None = None) -> Works
         return None
     n, nz = model.nx, model.nz
     params = np.asarray(form.params, dtype=float)
-    fields = workspace_fields(n, nz, params.size) + (extra or [])
-    ws = np.zeros(1, dtype=np.dtype(fields, align=True))
+    ws = np.zeros(1, dtype=workspace_dtype(tuple(workspace_fields(n, nz, params.size)
+                                                 + (extra or []))))
     s = ws[0]
     s["motion"] = form.motion
     s["params"][: params.size] = params
@@ -108,7 +147,7 @@ def workspace(model, use: np.ndarray, extra: list[tuple] | None = None) -> Works
     return Workspace(ws, ws["F"][0], ws["b"][0], ws["Q"][0], ws["x"][0], ws["P"][0], table,
                      form.transition,
                      form.motion == kinematics.GIVEN, np.ones(nz, dtype=bool),
-                     np.full(nz, np.nan))
+                     np.full(nz, np.nan), {})
 
 
 def raise_for_status(status: int, what: str) -> None:

@@ -36,7 +36,13 @@ from uwcosim.filters import sigma_kernels
 from uwcosim.filters.base import FilterBase, register
 from uwcosim.filters.gating import GateProbability, gate_field
 from uwcosim.filters.kalman import CompiledUpdate, compiled_field
-from uwcosim.filters.kalman_kernels import Workspace, compiled_workspace, raise_for_status
+from uwcosim.filters.kalman_kernels import (
+    F8,
+    Workspace,
+    compiled_workspace,
+    exact,
+    raise_for_status,
+)
 from uwcosim.filters.numerics import factor, gain_and_nis, symmetrize_
 from uwcosim.filters.settings import FilterSettings, Measurements, measurements_field
 
@@ -140,7 +146,11 @@ class SigmaPointFilter(CompiledUpdate, FilterBase):
 
     def _compiled_predict(self, w: Workspace, u, dt: float) -> None:
         w.transition(u, float(dt), w.F, w.b, w.Q)  # F, b, Q of the step (the model's)
-        status, repairs = sigma_kernels.sigma_predict(w.ws, self.x, self.P)  # Y_i = f(X_i, u)
+        kernel = sigma_kernels.sigma_predict  # Y_i = f(X_i, u)
+        if exact(self.x, F8, 1) and exact(self.P, F8, 2):
+            status, repairs = w.call(kernel, self.x, self.P)
+        else:  # the dispatcher types (and checks) them
+            status, repairs = kernel(w.ws, self.x, self.P)
         if repairs:
             self.diagnostics["pd_repairs"] += repairs
         if status:

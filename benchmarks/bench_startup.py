@@ -87,6 +87,14 @@ def import_breakdown(cmd: list[str]) -> tuple[dict[str, float], set[str]]:
     return dict(by_top), seen
 
 
+def cache_package(path: Path) -> str:
+    """The package of a Numba cache file: its folder ``<package>_<digest>`` in uwcosim's kernel
+    cache (``core.jit.kernel_cache_dir``), or, in a tree's ``__pycache__``, the tree's path."""
+    if path.parent.name == "__pycache__":
+        return ".".join(path.parent.parent.relative_to(ROOT).parts)
+    return path.parent.name.rsplit("_", 1)[0]
+
+
 def kernels_loaded(cmd: list[str]) -> dict[str, list[int]]:
     """The compiled specializations the command loads from Numba's cache: ``{kernel module:
     [count, bytes]}`` (a cache file holds the kernel's object code and the bitcode of it and
@@ -97,8 +105,7 @@ def kernels_loaded(cmd: list[str]) -> dict[str, list[int]]:
     for line in proc.stdout.splitlines():
         if "data loaded from" in line:
             path = Path(line.split("'")[1])
-            module = ".".join([*path.parent.parent.relative_to(ROOT).parts,
-                               path.name.split(".")[0]])
+            module = f"{cache_package(path)}.{path.name.split('.')[0]}"
             out[module][0] += 1
             out[module][1] += path.stat().st_size
     return dict(out)

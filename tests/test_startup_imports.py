@@ -1,10 +1,13 @@
 """What a short ``uwcosim run`` of a Kalman-only scenario imports (issue 22, fast start): no
 Numba (no compiled filter), no matplotlib (``--no-figures``), no pandas (the log is written from
 Arrow buffers), no ``pyarrow.compute`` (loaded by a replay only). The time itself is measured in
-``benchmarks/bench_startup.py``, not here."""
+``benchmarks/bench_startup.py``, not here; its count of the kernels a run loads is checked
+here (the package it gives a cache file)."""
 
 from __future__ import annotations
 
+import hashlib
+import importlib
 import subprocess
 import sys
 from pathlib import Path
@@ -27,3 +30,21 @@ def test_a_kalman_run_without_figures_imports_none_of_the_heavy_optional_modules
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split("\n")[-2].split() == ["0"], done.stdout[-500:]
+
+
+def test_the_startup_bench_names_the_package_of_a_kernel_cache_file():
+    """``bench_startup.py`` counts the kernels a run loads by package: from the folder Numba
+    names after the kernel module's folder in uwcosim's kernel cache, or from a tree's
+    ``__pycache__`` (a ``NUMBA_CACHE_DIR``-less checkout)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        bench = importlib.import_module("bench_startup")
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    source = ROOT / "uwcosim" / "filters" / "projection" / "bayes_kernels.py"
+    # Numba's name for the folder of a module's cache files: its folder's name and digest
+    folder = f"projection_{hashlib.sha1(str(source.parent).encode()).hexdigest()}"
+    cached = Path("/cache/uwcosim/numba/abc") / folder / "bayes_kernels.update-419.py311.nbi"
+    assert bench.cache_package(cached) == "projection"
+    in_tree = source.parent / "__pycache__" / "bayes_kernels.update-419.py311.nbi"
+    assert bench.cache_package(in_tree) == "uwcosim.filters.projection"

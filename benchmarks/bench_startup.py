@@ -88,10 +88,8 @@ def import_breakdown(cmd: list[str]) -> tuple[dict[str, float], set[str]]:
 
 
 def cache_package(path: Path) -> str:
-    """The package of a Numba cache file: its folder ``<package>_<digest>`` in uwcosim's kernel
-    cache (``core.jit.kernel_cache_dir``), or, in a tree's ``__pycache__``, the tree's path."""
-    if path.parent.name == "__pycache__":
-        return ".".join(path.parent.parent.relative_to(ROOT).parts)
+    """The package of a Numba cache file: Numba names its folder ``<package>_<digest>`` in the
+    kernel cache, which ``core.jit`` always sets (``kernel_cache_dir`` or ``NUMBA_CACHE_DIR``)."""
     return path.parent.name.rsplit("_", 1)[0]
 
 

@@ -17,6 +17,10 @@ Measured in one run, side by side (the machine is shared: compare the rows, not 
    with its FMUs in ``SRC/fmus``) the same commands run from it (``PYTHONPATH=SRC``) in the same
    loop, interleaved with this tree's: the before/after ratios. The first run of a revision
    compiles its kernels (a few minutes, untimed);
+   and two floors of a terrain start: a command that only imports the third-party modules
+   (neither the standard library's nor uwcosim's) that ``run tan_terrain`` imports, without
+   and with Numba (what any start of that run costs before uwcosim's own modules, its kernels
+   and its work);
 2. the import time of a 10-step ``lost_measurements`` and ``tan_terrain`` run (``python -X
    importtime``), the self time of every module summed by top-level package (numba, scipy,
    casadi, ...): where the fixed cost of a run is; which of numba, matplotlib and pandas a run
@@ -85,6 +89,30 @@ def import_breakdown(cmd: list[str]) -> tuple[dict[str, float], set[str]]:
         seen.add(top)
         by_top[top] += int(self_us) / 1e6
     return dict(by_top), seen
+
+
+def third_party_modules(cmd: list[str]) -> list[str]:
+    """The modules the command imports that are neither the standard library's nor uwcosim's,
+    Numba's or llvmlite's, in the order they finished importing (``python -X importtime``)."""
+    proc = subprocess.run([sys.executable, "-X", "importtime", *cmd[1:]], check=True,
+                          capture_output=True, text=True, cwd=ROOT, env=ENV)
+    own = {"uwcosim", "numba", "llvmlite", "__main__"}
+    out = []
+    for line in proc.stderr.splitlines():
+        if not line.startswith("import time:") or "self [us]" in line:
+            continue
+        name = line.rsplit("|", 1)[1].strip()
+        top = name.split(".")[0]
+        if top not in own and top not in sys.stdlib_module_names and not top.startswith("_"):
+            out.append(name)
+    return out
+
+
+def import_cmd(modules: list[str]) -> list[str]:
+    """A command that imports ``modules`` (the ones that import on their own) and exits."""
+    code = (f"import importlib\nfor m in {modules!r}:\n    try:\n"
+            "        importlib.import_module(m)\n    except Exception:\n        pass\n")
+    return [sys.executable, "-c", code]
 
 
 def cache_package(path: Path) -> str:
@@ -192,6 +220,12 @@ def main() -> int:
     for s in SCENARIOS:
         rows.append((f"run {s} (10 steps, --no-figures)", run_cmd(s, tmp / s), ENV, ROOT))
         rows.append((f"run {s}, normal interpreter exit", run_cmd(s, tmp / s), slow_exit, ROOT))
+    # the floor of a terrain start: what it imports besides uwcosim, without and with Numba
+    libs = third_party_modules(run_cmd("tan_terrain", tmp / "floor"))
+    rows.append(("imports of run tan_terrain alone: third-party, no Numba", import_cmd(libs),
+                 ENV, ROOT))
+    rows.append(("imports of run tan_terrain alone: third-party and Numba",
+                 import_cmd([*libs, "numba"]), ENV, ROOT))
     if args.compare:
         src = source_tree(args.compare)
         old = {**ENV, "PYTHONPATH": str(src)}

@@ -46,3 +46,26 @@ def test_the_startup_bench_names_the_package_of_a_kernel_cache_file():
     folder = f"point_mass_{hashlib.sha1(str(source.parent).encode()).hexdigest()}"
     cached = Path("/cache/uwcosim/numba/abc") / folder / "bayes_kernels.update-419.py311.nbi"
     assert bench.cache_package(cached) == "point_mass"
+
+
+def test_the_startup_bench_floor_imports_the_runs_third_party_modules_only(tmp_path):
+    """The floor rows of ``bench_startup.py`` time what a run imports besides the standard
+    library, uwcosim and Numba: the list taken from a real run's import trace holds numpy and
+    scipy's modules and none of those; its command imports them and exits 0."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        bench = importlib.import_module("bench_startup")
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    mods = bench.third_party_modules(bench.run_cmd(
+        str(ROOT / "scenarios" / "lost_measurements.toml"), tmp_path / "run"))
+    tops = {m.split(".")[0] for m in mods}
+    assert {"numpy", "scipy", "fmpy"} <= tops, sorted(tops)
+    assert not tops & {"uwcosim", "numba", "llvmlite", "json", "os"}, sorted(tops)
+    probe = "import sys\nexec(sys.argv[1])\nprint(sorted(m for m in {'numpy', 'uwcosim'} " \
+            "if m in sys.modules))"
+    code = bench.import_cmd(mods)[2]
+    done = subprocess.run([sys.executable, "-c", probe, code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == ["['numpy']"], done.stdout

@@ -10,17 +10,16 @@ Measured in one run, side by side (the machine is shared: compare the rows, not 
    ``uwcosim run SCENARIO --set run.duration=10 --no-figures`` for the shipped scenarios
    (``lost_measurements``: Kalman filters only, no compiled kernel; ``tan_dead_reckoning`` and
    ``tan_terrain``: six filters, four of them with compiled kernels), each also with
-   ``UWCOSIM_FAST_EXIT=0`` (the interpreter's normal teardown after the last line);
+   ``UWCOSIM_FAST_EXIT=0`` (the interpreter's normal teardown after the last line); two floors
+   of a terrain start: a command that only imports the third-party modules (neither the
+   standard library's nor uwcosim's) that ``run tan_terrain`` imports, without and with Numba
+   (what any start of that run costs before uwcosim's own modules, its kernels and its work);
    with ``--compare REV`` (a git revision, e.g. ``main``: its ``git archive`` unpacked into a
    folder of the temporary directory that is kept, so that its Numba cache stays warm, with
    this checkout's FMUs copied into it; or ``--compare SRC``, an unpacked older source tree
    with its FMUs in ``SRC/fmus``) the same commands run from it (``PYTHONPATH=SRC``) in the same
    loop, interleaved with this tree's: the before/after ratios. The first run of a revision
    compiles its kernels (a few minutes, untimed);
-   and two floors of a terrain start: a command that only imports the third-party modules
-   (neither the standard library's nor uwcosim's) that ``run tan_terrain`` imports, without
-   and with Numba (what any start of that run costs before uwcosim's own modules, its kernels
-   and its work);
 2. the import time of a 10-step ``lost_measurements`` and ``tan_terrain`` run (``python -X
    importtime``), the self time of every module summed by top-level package (numba, scipy,
    casadi, ...): where the fixed cost of a run is; which of numba, matplotlib and pandas a run
@@ -75,37 +74,35 @@ def run_cmd(scenario: str, out: Path) -> list[str]:
             "--out", str(out), "--force"]
 
 
-def import_breakdown(cmd: list[str]) -> tuple[dict[str, float], set[str]]:
-    """Self import time (s) by top-level package, and the top-level packages imported."""
+def import_trace(cmd: list[str]) -> list[tuple[str, float]]:
+    """``(module, self import time s)`` of every module the command imports, in the order they
+    finished importing (``python -X importtime``)."""
     proc = subprocess.run([sys.executable, "-X", "importtime", *cmd[1:]], check=True,
                           capture_output=True, text=True, cwd=ROOT, env=ENV)
-    by_top: dict[str, float] = defaultdict(float)
-    seen: set[str] = set()
-    for line in proc.stderr.splitlines():
-        if not line.startswith("import time:") or "self [us]" in line:
-            continue
-        self_us, _, name = line[len("import time:"):].split("|")
-        top = name.strip().split(".")[0]
-        seen.add(top)
-        by_top[top] += int(self_us) / 1e6
-    return dict(by_top), seen
-
-
-def third_party_modules(cmd: list[str]) -> list[str]:
-    """The modules the command imports that are neither the standard library's nor uwcosim's,
-    Numba's or llvmlite's, in the order they finished importing (``python -X importtime``)."""
-    proc = subprocess.run([sys.executable, "-X", "importtime", *cmd[1:]], check=True,
-                          capture_output=True, text=True, cwd=ROOT, env=ENV)
-    own = {"uwcosim", "numba", "llvmlite", "__main__"}
     out = []
     for line in proc.stderr.splitlines():
         if not line.startswith("import time:") or "self [us]" in line:
             continue
-        name = line.rsplit("|", 1)[1].strip()
-        top = name.split(".")[0]
-        if top not in own and top not in sys.stdlib_module_names and not top.startswith("_"):
-            out.append(name)
+        self_us, _, name = line[len("import time:"):].split("|")
+        out.append((name.strip(), int(self_us) / 1e6))
     return out
+
+
+def import_breakdown(cmd: list[str]) -> tuple[dict[str, float], set[str]]:
+    """Self import time (s) by top-level package, and the top-level packages imported."""
+    by_top: dict[str, float] = defaultdict(float)
+    for name, self_s in import_trace(cmd):
+        by_top[name.split(".")[0]] += self_s
+    return dict(by_top), set(by_top)
+
+
+def third_party_modules(cmd: list[str]) -> list[str]:
+    """The modules the command imports that are neither the standard library's nor uwcosim's,
+    Numba's or llvmlite's, in the order they finished importing."""
+    own = {"uwcosim", "numba", "llvmlite", "__main__"}
+    return [name for name, _ in import_trace(cmd)
+            if (top := name.split(".")[0]) not in own and top not in sys.stdlib_module_names
+            and not top.startswith("_")]
 
 
 def import_cmd(modules: list[str]) -> list[str]:

@@ -32,15 +32,20 @@ def test_a_kalman_run_without_figures_imports_none_of_the_heavy_optional_modules
     assert done.stdout.split("\n")[-2].split() == ["0"], done.stdout[-500:]
 
 
+def _bench():
+    """``benchmarks/bench_startup.py`` as a module."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        return importlib.import_module("bench_startup")
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+
+
 def test_the_startup_bench_names_the_package_of_a_kernel_cache_file():
     """``bench_startup.py`` counts the kernels a run loads by package, from the folder that
     Numba names after the kernel module's folder (``<name>_<digest>``) in the kernel cache; a
     package whose name holds an underscore keeps it."""
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        bench = importlib.import_module("bench_startup")
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
+    bench = _bench()
     source = ROOT / "uwcosim" / "filters" / "point_mass" / "bayes_kernels.py"
     # Numba's name for the folder of a module's cache files: its folder's name and digest
     folder = f"point_mass_{hashlib.sha1(str(source.parent).encode()).hexdigest()}"
@@ -52,11 +57,7 @@ def test_the_startup_bench_floor_imports_the_runs_third_party_modules_only(tmp_p
     """The floor rows of ``bench_startup.py`` time what a run imports besides the standard
     library, uwcosim and Numba: the list taken from a real run's import trace holds numpy and
     scipy's modules and none of those; its command imports them and exits 0."""
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        bench = importlib.import_module("bench_startup")
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
+    bench = _bench()
     mods = bench.third_party_modules(bench.run_cmd(
         str(ROOT / "scenarios" / "lost_measurements.toml"), tmp_path / "run"))
     tops = {m.split(".")[0] for m in mods}

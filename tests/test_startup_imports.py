@@ -1,6 +1,8 @@
 """What a short ``uwcosim run`` of a Kalman-only scenario imports (issue 22, fast start): no
 Numba (no compiled filter), no matplotlib (``--no-figures``), no pandas (the log is written from
-Arrow buffers), no ``pyarrow.compute`` (loaded by a replay only). The time itself is measured in
+Arrow buffers), no ``pyarrow.compute`` (loaded by a replay only), no module of a filter it does
+not use (the built-in filters are declared in the registry and imported on first lookup), no
+CasADi model builder. The time itself is measured in
 ``benchmarks/bench_startup.py``, not here; its count of the kernels a run loads is checked
 here (the package it gives a cache file)."""
 
@@ -18,7 +20,10 @@ _PROBE = """
 import sys
 from uwcosim.cli import main
 code = main(sys.argv[1:])
-heavy = ("numba", "matplotlib", "pandas", "pyarrow.compute")
+heavy = ("numba", "matplotlib", "pandas", "pyarrow.compute", "uwcosim.filters.sigma_point",
+         "uwcosim.filters.particle", "uwcosim.filters.rbpf", "uwcosim.filters.point_mass",
+         "uwcosim.filters.projection", "uwcosim.filters.grid", "uwcosim.models.symbolic",
+         "scipy.fft", "scipy.sparse.linalg")
 print(code, *[m for m in heavy if m in sys.modules])
 """
 

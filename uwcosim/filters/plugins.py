@@ -116,8 +116,8 @@ def user_estimators() -> dict[str, Origin]:
     """The user's filters known to this process (resolved, or registered by a user's
     module): type string -> origin."""
     out = {k: o for k, (_, o) in _RESOLVED.items()}
-    for name in ESTIMATORS.names():
-        if not ESTIMATORS.get(name).__module__.startswith("uwcosim."):
+    for name, cls in ESTIMATORS.loaded().items():
+        if not cls.__module__.startswith("uwcosim."):
             out[name] = estimator_origin(name)
     return out
 

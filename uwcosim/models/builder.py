@@ -29,7 +29,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -41,7 +41,9 @@ from uwcosim.core.plugins import (
     is_import_path,
     load_entry_point,
 )
-from uwcosim.models.terrain import Bathymetry
+
+if TYPE_CHECKING:  # the map comes with the context: building one is the caller's (scipy)
+    from uwcosim.models.terrain import Bathymetry
 
 #: the entry-point group of installed model builders
 GROUP = "uwcosim.models"

@@ -61,6 +61,15 @@ def test_results_do_not_depend_on_worker_count(spec, tmp_path):
     assert "| with_terrain | ekf | 3 |" in (tmp_path / "b" / "table.md").read_text()
 
 
+def test_the_spawned_pool_gives_the_supervised_workers_results(spec, tmp_path, monkeypatch):
+    """``UWCOSIM_SUPERVISE=0`` (or a platform that cannot fork): ``--workers 2`` is a pool of
+    spawned processes, with the same results as the supervised children."""
+    run_campaign(spec, tmp_path / "a", workers=2, figures=False)
+    monkeypatch.setenv("UWCOSIM_SUPERVISE", "0")
+    run_campaign(spec, tmp_path / "b", workers=2, figures=False)
+    assert _table(tmp_path / "a") == _table(tmp_path / "b")
+
+
 def test_resume_skips_finished_runs_and_refuses_to_overwrite(spec, tmp_path):
     out = tmp_path / "c"
     run_campaign(spec, out, runs=1, workers=1, figures=False)

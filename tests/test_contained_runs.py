@@ -47,29 +47,33 @@ def _campaign(tmp_path: Path, crash: list[str], extra: str = "") -> Path:
     return spec
 
 
-def _run_campaign(spec: Path, out: Path, env: dict, *args: str) -> subprocess.CompletedProcess:
+def _run_campaign(spec: Path, out: Path, env: dict, *args: str, workers: int = 1
+                  ) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "uwcosim", "campaign", str(spec), "--out",
-                           str(out), "--workers", "1", *args], cwd=ROOT, env=env,
+                           str(out), "--workers", str(workers), *args], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=300)
 
 
-@pytest.mark.parametrize(("mode", "code", "expected"), [
-    ("exit", 0, "the process exited with status 0"),
-    ("segfault", 0, "killed by SIGSEGV"),
-], ids=["exit0", "segfault"])
+@pytest.mark.parametrize(("mode", "code", "expected", "workers"), [
+    ("exit", 0, "the process exited with status 0", 1),
+    ("segfault", 0, "killed by SIGSEGV", 1),
+    ("segfault", 0, "killed by SIGSEGV", 2),
+], ids=["exit0", "segfault", "segfault-2-workers"])
 def test_an_fmu_that_ends_the_process_fails_one_campaign_run(tmp_path, project_fmus, child_env,
-                                                            mode, code, expected):
-    """``campaign --workers 1``: each run the FMU ends is one failed record and one line; the
-    other runs (after it, too) finish; the campaign reports them and exits 1, never 0."""
+                                                            mode, code, expected, workers):
+    """``campaign --workers 1`` and ``--workers 2``: each run the FMU ends is one failed
+    record and one line naming the FMU call of the process that died; the other runs (after
+    it, too) finish; the campaign reports them and exits 1, never 0."""
     spec = _campaign(tmp_path, _crasher(mode, "doStep", 5.0, code))
     out = tmp_path / "camp"
-    proc = _run_campaign(spec, out, child_env)
+    proc = _run_campaign(spec, out, child_env, workers=workers)
     assert proc.returncode == 1, (proc.returncode, proc.stderr)
     assert "Traceback" not in proc.stderr
     lines = [ln for ln in without_progress(proc.stderr).splitlines() if ln.startswith("failed:")]
     want = f"FMU 'crash' ended the process during doStep at t=5 ({expected}"
     assert len(lines) == 2 and all(want in ln for ln in lines), proc.stderr
-    assert lines[0].startswith("failed: crash run 0: ")
+    assert sorted(ln[:len("failed: crash run 0: ")] for ln in lines) == [
+        "failed: crash run 0: ", "failed: crash run 1: "]
     records = {p.stem: json.loads(p.read_text()) for p in (out / "results").glob("*.json")}
     assert sorted(records) == ["crash__00000", "crash__00001", "ok__00000", "ok__00001"]
     assert [records[k]["status"] for k in sorted(records)] == ["failed", "failed", "ok", "ok"]

@@ -245,7 +245,7 @@ def test_the_run_wide_watchdog_ends_a_hanging_fmu(tmp_path, project_fmus):
 
 CAMPAIGN = """
 seed = 3
-runs = 8
+runs = 40
 [[variants]]
 name = "v"
 scenario = "{root}/scenarios/tan_terrain.toml"
@@ -260,7 +260,7 @@ def test_campaign_workers_die_with_the_campaign(tmp_path, project_fmus, sig):
     out = tmp_path / "o"
     proc = _spawn("campaign", str(spec), "--out", str(out), "--workers", "2")
     deadline = time.monotonic() + 120
-    while len(descendants(proc.pid)) < 3:  # two workers and the resource tracker
+    while len(descendants(proc.pid)) < 2:  # the two workers
         assert proc.poll() is None, proc.communicate()
         assert time.monotonic() < deadline
         time.sleep(0.05)

@@ -6,17 +6,23 @@ interruption loses nothing already finished and ``--resume`` skips those runs (a
 not valid JSON is taken as not done and run again). A failed run is recorded with its error
 and the campaign goes on; its run directory is kept in ``failed/<variant>/run_NNNNN``.
 
-``--workers 1`` runs the tasks one after the other in a forked child process
-(:func:`uwcosim.core.supervise.supervised_map`; FMU instances are reused between its runs as in
-a pool worker): an FMU that ends that process (``exit``, ``abort``, a segmentation fault) or the
-run-wide watchdog (``run.fmu_timeout_s``) fails that run, as ``uwcosim run`` reports it (one
+``--workers N`` runs the tasks on N forked child processes at once, each given the next run
+when it has finished one (:func:`uwcosim.core.supervise.supervised_pool`; ``--workers 1``: one
+child, :func:`~uwcosim.core.supervise.supervised_map`; FMU instances are reused between the runs
+of a child): an FMU that ends a child's process (``exit``, ``abort``, a segmentation fault) or
+the run-wide watchdog (``run.fmu_timeout_s``) fails that run, as ``uwcosim run`` reports it (one
 line: which FMU call, how; the run directory finished from its journal and kept under
-``failed/``), and a new child goes on with the next run.
+``failed/``), and a new child takes the dead one's place. The children die with the campaign
+(``prctl`` parent-death signal); the campaign passes SIGINT, SIGTERM and SIGHUP on to them, and
+their temporary files are in folders of the campaign's, removed when each child ends.
 
-Pool workers die with the campaign (``prctl`` parent-death signal) and ignore SIGINT, SIGTERM
-and SIGHUP (the campaign process decides); an interrupted campaign kills them. Their temporary
-files (``uwcosim_run_*`` run folders, unzipped FMUs) are in a folder of the campaign's,
-removed when the pool ends, however it ends.
+Where the platform cannot fork, or with ``UWCOSIM_SUPERVISE=0``, ``--workers N`` is a pool of
+spawned worker processes (:class:`~concurrent.futures.ProcessPoolExecutor`), which cannot
+contain a crash: a worker that dies stops the campaign (finished runs are kept, ``--resume``
+goes on). Pool workers die with the campaign and ignore SIGINT, SIGTERM and SIGHUP (the campaign
+process decides); an interrupted campaign kills them. Their temporary files (``uwcosim_run_*``
+run folders, unzipped FMUs) are in a folder of the campaign's, removed when the pool ends,
+however it ends.
 """
 
 from __future__ import annotations
@@ -39,7 +45,8 @@ from uwcosim.campaign.aggregate import read_record
 from uwcosim.campaign.spec import Task
 from uwcosim.core.errors import RunInterrupted, ScenarioError, UwcosimError
 from uwcosim.core.process import die_with_parent
-from uwcosim.core.supervise import Death, announce, supervised_map
+from uwcosim.core.supervise import Death, announce, supervised_pool
+from uwcosim.core.supervise import enabled as supervised
 from uwcosim.master.master import Master
 from uwcosim.run.aftermath import finish_dead_run
 from uwcosim.run.simulate import run_scenario
@@ -116,7 +123,7 @@ def execute_run(task: Task) -> dict:
 
 
 def dead_run_record(task: Task, death: Death) -> dict:
-    """The record of a run whose process ended in it (:func:`supervised_map`): failed, with the
+    """The record of a run whose process ended in it (:func:`supervised_pool`): failed, with the
     one line ``uwcosim run`` would print; its run directory finished and kept."""
     error = death.message()
     if death.out_dir is not None:
@@ -335,11 +342,14 @@ def _iterate(tasks: list[Task], workers: int, scheduler: str | None) -> Iterable
         return
     if scheduler:
         yield from _dask(tasks, scheduler)
-    elif workers <= 1:
-        for i, record in supervised_map(execute_run, tasks):
+    elif workers <= 1 or supervised():
+        # one BLAS/OpenMP thread per process: K processes on K cores, no oversubscription
+        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ.setdefault(var, "1")
+        for i, record in supervised_pool(execute_run, tasks, workers):
             yield tasks[i], dead_run_record(tasks[i], record) \
                 if isinstance(record, Death) else record
-    else:
+    else:  # a platform that cannot fork, or UWCOSIM_SUPERVISE=0: spawned pool workers
         import multiprocessing as mp
 
         # one BLAS/OpenMP thread per worker process: K processes on K cores, no oversubscription

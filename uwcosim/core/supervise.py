@@ -15,7 +15,9 @@ directory (``uwcosim.run.aftermath``). No per-step cost: the FMUs still run in t
 that steps them. :class:`Child` is that child and its messages (:func:`tell`, read as they
 arrive); :func:`supervised_map` runs a sequence of jobs in one (a campaign's runs), yields each
 result as it comes and, when the child dies in a job, that job's :class:`Death`, then goes on
-with the next job in a new child. The child ends with ``os._exit`` after what the
+with the next job in a new child; :func:`supervised_pool` does the same on several children at
+once (``campaign --workers N``), the parent waiting on all their pipes and handing each the
+next job's index when it has finished one. The child ends with ``os._exit`` after what the
 interpreter's exit would do for a run (workers killed, scratch folders removed, logging and
 output flushed), not after its teardown of every module (slow with Numba loaded: most of the
 time a stop took).
@@ -23,7 +25,7 @@ time a stop took).
 The child's temporary files (unzipped FMUs, extracted SSP members, its workers' files) go
 to a folder of the parent's (``TMPDIR``), removed when the child has ended, however it ended.
 
-Signals: the parent passes SIGINT, SIGTERM and SIGHUP on to the child (unless they are ignored,
+Signals: the parent passes SIGINT, SIGTERM and SIGHUP on to every child it runs (unless they are ignored,
 e.g. under ``nohup``: the child inherits that) and otherwise ignores them; the child stops as a
 run always does (:mod:`uwcosim.core.runguard`). The child has a process group of its own, so a
 terminal's Ctrl-C (sent to the foreground group) reaches it once, through the parent. The
@@ -35,9 +37,11 @@ directly.
 
 from __future__ import annotations
 
+import collections
 import json
 import logging
 import os
+import selectors
 import shutil
 import signal
 import sys
@@ -143,10 +147,52 @@ def supervise(command: Callable[[], int]) -> int | Death:
     return child.result
 
 
+class _Forwarder:
+    """The parent's handlers of SIGINT, SIGTERM and SIGHUP while children run: each signal is
+    passed on to every live child and remembered. Installed by the first live :class:`Child`,
+    the previous handlers put back when the last one ends."""
+
+    def __init__(self) -> None:
+        self.pids: set[int] = set()
+        self.signals: list[int] = []  # every signal passed on, in order
+        self._users = 0
+        self._saved: dict = {}
+
+    def __call__(self, signum, frame) -> None:
+        self.signals.append(signum)
+        for pid in list(self.pids):
+            try:
+                os.kill(pid, signum)
+            except ProcessLookupError:
+                pass
+
+    def acquire(self) -> None:
+        if self._users == 0:
+            for s in _FORWARDED:
+                if signal.getsignal(s) is not signal.SIG_IGN:
+                    self._saved[s] = signal.signal(s, self)
+        self._users += 1
+
+    def release(self) -> None:
+        self._users -= 1
+        if self._users == 0:
+            self.restore()
+
+    def restore(self) -> None:
+        """Put the handlers back (in a new child: its own are the parent's old ones)."""
+        for s, old in self._saved.items():
+            signal.signal(s, old)
+        self._saved = {}
+
+
+_forwarder = _Forwarder()
+
+
 class Child:
     """``command`` in a forked child (see the module docstring): :meth:`messages` yields what
-    it says (:func:`tell`) as it arrives; then :attr:`result` is its exit status or its
-    :class:`Death`. :meth:`close` ends it (if it still runs) and removes its temporary
+    it says (:func:`tell`) as it arrives (or :meth:`read`, one read of the pipe, for a parent
+    that waits on several children: :meth:`fileno`); then :attr:`result` is its exit status or
+    its :class:`Death`. :meth:`close` ends it (if it still runs) and removes its temporary
     folder."""
 
     def __init__(self, command: Callable[[], int]) -> None:
@@ -155,43 +201,30 @@ class Child:
         self.error: str | None = None
         self._code: int | None = None
         self._pid: int | None = None
-        self._forwarded: list[int] = []
-        self._saved: dict = {}
+        self._data = b""
         self._r, w = os.pipe()
-        fmucall.clear()
+        self._page = fmucall.fresh()  # the record of the child's FMU calls (its own page)
         parent = os.getpid()
         self.tmp = tempfile.mkdtemp(prefix="uwcosim_proc_")  # the child's temporary folder
         sys.stdout.flush()
         sys.stderr.flush()
-        target: list[int] = []
-        forwarded = self._forwarded
-
-        def forward(signum, frame) -> None:
-            forwarded.append(signum)
-            for pid in target:
-                try:
-                    os.kill(pid, signum)
-                except ProcessLookupError:
-                    pass
-
         # installed before the fork: a signal in between is passed on, not lost
-        for s in _FORWARDED:
-            if signal.getsignal(s) is not signal.SIG_IGN:
-                self._saved[s] = signal.signal(s, forward)
-        before = len(forwarded)
+        _forwarder.acquire()
+        self._acquired = True
+        self._before = len(_forwarder.signals)
         pid = os.fork()
         if pid == 0:  # the child: the command, then its exit status to the parent
-            self._child(command, w, parent, forwarded[before:])
+            self._child(command, w, parent, _forwarder.signals[self._before:])
         os.close(w)
         self._pid = pid
-        target.append(pid)
-        for s in list(forwarded):  # arrived during the fork
+        _forwarder.pids.add(pid)
+        for s in _forwarder.signals[self._before:]:  # arrived during the fork
             os.kill(pid, s)
 
     def _child(self, command: Callable[[], int], w: int, parent: int, early: list[int]):
         global _fd
-        for s, old in self._saved.items():
-            signal.signal(s, old)
+        _forwarder.restore()
+        _forwarder.pids.clear()
         for s in early:  # reached the child before its own handlers were back
             signal.raise_signal(s)
         os.close(self._r)
@@ -217,40 +250,60 @@ class Child:
             done(code)
             os._exit(code)
 
+    def fileno(self) -> int:
+        """The parent's end of the child's pipe (to wait on with :mod:`selectors`)."""
+        return self._r
+
+    def read(self) -> list[tuple[str, str]] | None:
+        """One read of the pipe (blocks until the child says something or ends): the
+        ``(key, value)`` messages it completed; None when the child has ended (then
+        :attr:`result` is set)."""
+        try:
+            chunk = os.read(self._r, 65536)
+        except InterruptedError:  # pragma: no cover - PEP 475 retries; kept for clarity
+            return []
+        if not chunk:
+            self._reap()
+            return None
+        self._data += chunk
+        *lines, self._data = self._data.split(b"\n")
+        out = []
+        for line in lines:
+            key, _, value = line.decode("utf-8", "surrogateescape").partition(" ")
+            if key == "out":
+                self.out_dir = value
+            elif key == "done":
+                self._code = int(value)
+            elif key == "error":
+                self.error = value
+            else:
+                out.append((key, value))
+        return out
+
     def messages(self) -> Iterator[tuple[str, str]]:
         """``(key, value)`` of each :func:`tell` of the child, as it arrives; when the child
         has ended, :attr:`result` is set."""
-        data = b""
-        try:
-            with os.fdopen(self._r, "rb", buffering=0) as pipe:
-                self._r = -1
-                while chunk := pipe.read(65536):
-                    data += chunk
-                    *lines, data = data.split(b"\n")
-                    for line in lines:
-                        key, _, value = line.decode("utf-8", "surrogateescape").partition(" ")
-                        if key == "out":
-                            self.out_dir = value
-                        elif key == "done":
-                            self._code = int(value)
-                        elif key == "error":
-                            self.error = value
-                        else:
-                            yield key, value
-            _, status = os.waitpid(self._pid, 0)
-            self._pid = None
-        finally:
-            self._restore()
+        while (batch := self.read()) is not None:
+            yield from batch
+
+    def _reap(self) -> None:
+        os.close(self._r)
+        self._r = -1
+        _, status = os.waitpid(self._pid, 0)
+        _forwarder.pids.discard(self._pid)
+        self._pid = None
+        forwarded = _forwarder.signals[self._before:]
+        self._release()
         if self._code is not None:
             self.result = self._code
         else:
-            self.result = Death(_how(status), self.out_dir, fmucall.current(),
-                                self._forwarded[0] if self._forwarded else None, self.error)
+            self.result = Death(_how(status), self.out_dir, self._page.current(),
+                                forwarded[0] if forwarded else None, self.error)
 
-    def _restore(self) -> None:
-        for s, old in self._saved.items():
-            signal.signal(s, old)
-        self._saved = {}
+    def _release(self) -> None:
+        if self._acquired:
+            self._acquired = False
+            _forwarder.release()
 
     def close(self) -> None:
         """End the child if it still runs (SIGKILL), then remove its temporary folder."""
@@ -263,8 +316,9 @@ class Child:
             except ProcessLookupError:
                 pass
             os.waitpid(self._pid, 0)
+            _forwarder.pids.discard(self._pid)
             self._pid = None
-        self._restore()
+        self._release()
         shutil.rmtree(self.tmp, ignore_errors=True)  # what a dead child could not remove
 
 
@@ -329,3 +383,138 @@ def _map_child(func: Callable, items: Sequence, start: int) -> int:
             return 128 + signum if signum else int(getattr(exc, "exit_code", 130))
         tell("result", json.dumps(result))
     return 0
+
+
+@dataclass
+class _Lane:
+    """One child of :func:`supervised_pool`: the parent's end of its task pipe and the item
+    it was given (None: idle), whether it said it started that item."""
+
+    child: Child
+    tasks: int
+    item: int | None = None
+    started: bool = False
+
+
+def supervised_pool(func: Callable[[T], object], items: Sequence[T], workers: int
+                    ) -> Iterator[tuple[int, object]]:
+    """``func(item)`` for each of ``items`` on ``workers`` supervised children at once, each
+    given the next item (its index through a pipe) when it has finished one: yields ``(i,
+    result)`` in the order they finish. A child that ends during item ``i`` without its
+    result yields ``(i, Death)``, while its temporary folder still exists, and a new child takes
+    its place. Each child records its FMU calls on a page of its own
+    (:func:`uwcosim.core.fmucall.fresh`), so a death names the call of the child that died.
+    Interrupted (a signal passed on to every child): no item is given any more and, when every
+    child has stopped, :class:`~uwcosim.core.errors.RunInterrupted` with the exit status 128 +
+    signal; the items in progress are not yielded. ``workers <= 1`` is
+    :func:`supervised_map`; ``UWCOSIM_SUPERVISE=0`` runs in this process."""
+    if workers <= 1 or not enabled():
+        yield from supervised_map(func, items)
+        return
+    queue = collections.deque(range(len(items)))
+    lanes: dict[int, _Lane] = {}
+    sel = selectors.DefaultSelector()
+    signals_before = len(_forwarder.signals)
+    interrupted: int | None = None
+
+    def stopping() -> bool:
+        return interrupted is not None or len(_forwarder.signals) > signals_before
+
+    def give(lane: _Lane) -> None:
+        """The lane's next item, or ``stop`` (a child that died meanwhile: its end is read)."""
+        lane.item = queue.popleft() if queue and not stopping() else None
+        lane.started = False
+        lane.child.out_dir = lane.child.error = None
+        try:
+            os.write(lane.tasks, b"stop\n" if lane.item is None else b"%d\n" % lane.item)
+        except OSError:
+            pass
+
+    def start() -> None:
+        r, w = os.pipe()
+        child = Child(partial(_lane_child, func, items, r, w))
+        os.close(r)
+        lane = _Lane(child, w)
+        lanes[child.fileno()] = lane
+        sel.register(child.fileno(), selectors.EVENT_READ, lane)
+        give(lane)
+
+    try:
+        for _ in range(min(workers, len(items))):
+            start()
+        while lanes:
+            for key, _ in sel.select():
+                lane: _Lane = key.data
+                fd = key.fd
+                batch = lane.child.read()
+                if batch is not None:
+                    for k, v in batch:
+                        if k == "item":
+                            lane.started = True
+                        elif k == "result":
+                            i = lane.item
+                            give(lane)
+                            yield i, json.loads(v)
+                    continue
+                sel.unregister(fd)
+                del lanes[fd]
+                result = lane.child.result
+                code = result if isinstance(result, int) else None
+                if isinstance(result, Death) and result.forwarded is not None:
+                    code = 128 + result.forwarded
+                try:
+                    if code is not None and code >= 128:
+                        interrupted = interrupted or code
+                        continue
+                    if lane.item is None and code == 0:  # told to stop
+                        continue
+                    if lane.item is None or not lane.started:  # only an internal error
+                        how = result.message() if isinstance(result, Death) else \
+                            f"exit status {result}"
+                        raise UwcosimError(f"a supervised worker process ended between "
+                                           f"items ({how})")
+                    if isinstance(result, int):  # it chose its status, e.g. the watchdog's 3
+                        result = Death(f"the process exited with status {result}",
+                                       lane.child.out_dir, None, None, lane.child.error)
+                    yield lane.item, result
+                finally:
+                    lane.child.close()
+                    os.close(lane.tasks)
+                if queue and not stopping():
+                    start()
+        if interrupted is None and stopping():
+            interrupted = 128 + _forwarder.signals[signals_before]
+        if interrupted is not None:
+            err = RunInterrupted(f"interrupted by signal {interrupted - 128}")
+            err.exit_code = interrupted
+            raise err
+    finally:
+        for lane in lanes.values():
+            lane.child.close()
+            os.close(lane.tasks)
+        sel.close()
+
+
+def _lane_child(func: Callable, items: Sequence, tasks: int, parents_end: int) -> int:
+    """A child of :func:`supervised_pool`: the items whose indices the parent writes to the
+    pipe ``tasks``, one per line, until ``stop``."""
+    os.close(parents_end)
+    with os.fdopen(tasks, "rb", buffering=0) as pipe:
+        try:  # interrupted in an item or waiting for one
+            while (line := _readline(pipe)) not in (b"", b"stop"):
+                i = int(line)
+                tell("item", str(i))
+                result = func(items[i])
+                tell("result", json.dumps(result))
+        except (KeyboardInterrupt, RunInterrupted) as exc:
+            signum = getattr(exc, "signum", None)
+            return 128 + signum if signum else int(getattr(exc, "exit_code", 130))
+    return 0
+
+
+def _readline(pipe) -> bytes:
+    """One line of the unbuffered ``pipe`` without its newline (b"" at its end)."""
+    out = b""
+    while (c := pipe.read(1)) not in (b"", b"\n"):
+        out += c
+    return out

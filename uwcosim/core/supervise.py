@@ -25,11 +25,11 @@ time a stop took).
 The child's temporary files (unzipped FMUs, extracted SSP members, its workers' files) go
 to a folder of the parent's (``TMPDIR``), removed when the child has ended, however it ended.
 
-Signals: the parent passes SIGINT, SIGTERM and SIGHUP on to every child it runs (unless they are ignored,
-e.g. under ``nohup``: the child inherits that) and otherwise ignores them; the child stops as a
-run always does (:mod:`uwcosim.core.runguard`). The child has a process group of its own, so a
-terminal's Ctrl-C (sent to the foreground group) reaches it once, through the parent. The
-child dies with the parent (``kill -9`` of the parent:
+Signals: the parent passes SIGINT, SIGTERM and SIGHUP on to every child it runs (unless they
+are ignored, e.g. under ``nohup``: the child inherits that) and otherwise ignores them; the
+child stops as a run always does (:mod:`uwcosim.core.runguard`). The child has a process group
+of its own, so a terminal's Ctrl-C (sent to the foreground group) reaches it once, through the
+parent. The child dies with the parent (``kill -9`` of the parent:
 :func:`uwcosim.core.process.die_with_parent`). ``UWCOSIM_SUPERVISE=0`` runs in one
 process (e.g. under a debugger). POSIX only; elsewhere :func:`supervise` calls the command
 directly.

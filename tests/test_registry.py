@@ -48,6 +48,14 @@ def test_a_declared_name_is_listed_and_imported_on_its_first_lookup_only(fake_mo
     assert reg.loaded() == {"fake": object}
 
 
+def test_load_all_imports_every_declared_module(fake_module):
+    imports = fake_module()
+    reg = REGISTRY
+    reg.declare("fake", "uwc_fake_filters")
+    reg.load_all()
+    assert imports() == 1 and reg.loaded() == {"fake": object}
+
+
 def test_a_declared_module_that_does_not_register_its_name_is_an_error(fake_module):
     fake_module(registers=False)
     reg = REGISTRY

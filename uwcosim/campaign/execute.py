@@ -342,19 +342,17 @@ def _iterate(tasks: list[Task], workers: int, scheduler: str | None) -> Iterable
         return
     if scheduler:
         yield from _dask(tasks, scheduler)
-    elif workers <= 1 or supervised():
-        # one BLAS/OpenMP thread per process: K processes on K cores, no oversubscription
-        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-            os.environ.setdefault(var, "1")
+        return
+    # one BLAS/OpenMP thread per worker process: K processes on K cores, no oversubscription
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+    if workers <= 1 or supervised():
         for i, record in supervised_pool(execute_run, tasks, workers):
             yield tasks[i], dead_run_record(tasks[i], record) \
                 if isinstance(record, Death) else record
     else:  # a platform that cannot fork, or UWCOSIM_SUPERVISE=0: spawned pool workers
         import multiprocessing as mp
 
-        # one BLAS/OpenMP thread per worker process: K processes on K cores, no oversubscription
-        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-            os.environ.setdefault(var, "1")
         # the workers' temporary files (runs, unzipped FMUs): a killed worker leaves them
         tmp = tempfile.mkdtemp(prefix="uwcosim_campaign_")
         try:

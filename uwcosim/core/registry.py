@@ -6,8 +6,8 @@ factory itself (:mod:`uwcosim.filters.settings`), not here.
 A registry may have a ``fallback``: a function that finds a name the registry does not hold
 (a user's filter named ``package.module:Name`` or by an entry point:
 :mod:`uwcosim.filters.plugins` installs it on :data:`uwcosim.filters.base.ESTIMATORS`), raising
-the one-line error itself. ``in`` and :meth:`Registry.names` count the registered names only
-(and the declared ones).
+the one-line error itself. ``in`` and :meth:`Registry.names` count the registered and the
+declared names only.
 
 A name may be *declared* before it is registered (:meth:`Registry.declare`): the registry then
 knows which module registers it and imports that module on the first lookup of the name, so
@@ -60,8 +60,8 @@ class Registry(Generic[T]):
 
     def load(self, name: str) -> None:
         """Import the module that registers the declared ``name`` (nothing if registered)."""
-        module = self._declared.get(name)
-        if module is None or name in self._items:
+        module = self._declared.get(name)  # registering a name drops its declaration
+        if module is None:
             return
         importlib.import_module(module)
         if name not in self._items:

@@ -258,10 +258,7 @@ class Child:
         """One read of the pipe (blocks until the child says something or ends): the
         ``(key, value)`` messages it completed; None when the child has ended (then
         :attr:`result` is set)."""
-        try:
-            chunk = os.read(self._r, 65536)
-        except InterruptedError:  # pragma: no cover - PEP 475 retries; kept for clarity
-            return []
+        chunk = os.read(self._r, 65536)
         if not chunk:
             self._reap()
             return None
@@ -350,13 +347,9 @@ def supervised_map(func: Callable[[T], object], items: Sequence[T]
                     yield current, json.loads(value)
                     start, current = current + 1, None
             result = child.result
-            code = result if isinstance(result, int) else None
-            if isinstance(result, Death) and result.forwarded is not None:
-                code = 128 + result.forwarded
-            if code is not None and code >= 128:
-                err = RunInterrupted(f"interrupted by signal {code - 128}")
-                err.exit_code = code
-                raise err
+            code = _interrupt_status(result)
+            if code is not None:
+                raise _interrupted(code)
             if current is None:  # between items: only an internal error ends it so
                 if start < len(items):
                     how = result.message() if isinstance(result, Death) else \
@@ -364,13 +357,38 @@ def supervised_map(func: Callable[[T], object], items: Sequence[T]
                     raise UwcosimError(f"the supervised process ended before item {start} "
                                        f"({how})")
                 return
-            if isinstance(result, int):  # it chose its status, e.g. the watchdog's 3
-                result = Death(f"the process exited with status {result}", child.out_dir,
-                               None, None, child.error)
-            yield current, result
+            yield current, _death(result, child)
             start = current + 1
         finally:
             child.close()
+
+
+def _interrupt_status(result: int | Death) -> int | None:
+    """128 + signal for a child that a passed-on signal stopped (or ended), else None."""
+    if isinstance(result, Death):
+        return None if result.forwarded is None else 128 + result.forwarded
+    return result if result >= 128 else None
+
+
+def _interrupted(code: int) -> RunInterrupted:
+    err = RunInterrupted(f"interrupted by signal {code - 128}")
+    err.exit_code = code
+    return err
+
+
+def _death(result: int | Death, child: Child) -> Death:
+    """The :class:`Death` of a child that ended in an item: as it is, or for a status the
+    child chose itself (e.g. the watchdog's 3)."""
+    if isinstance(result, Death):
+        return result
+    return Death(f"the process exited with status {result}", child.out_dir, None, None,
+                 child.error)
+
+
+def _stop_status(exc: BaseException) -> int:
+    """A child's exit status when a signal stopped it (KeyboardInterrupt, RunInterrupted)."""
+    signum = getattr(exc, "signum", None)
+    return 128 + signum if signum else int(getattr(exc, "exit_code", 130))
 
 
 def _map_child(func: Callable, items: Sequence, start: int) -> int:
@@ -379,8 +397,7 @@ def _map_child(func: Callable, items: Sequence, start: int) -> int:
         try:
             result = func(items[i])
         except (KeyboardInterrupt, RunInterrupted) as exc:
-            signum = getattr(exc, "signum", None)
-            return 128 + signum if signum else int(getattr(exc, "exit_code", 130))
+            return _stop_status(exc)
         tell("result", json.dumps(result))
     return 0
 
@@ -459,24 +476,19 @@ def supervised_pool(func: Callable[[T], object], items: Sequence[T], workers: in
                 sel.unregister(fd)
                 del lanes[fd]
                 result = lane.child.result
-                code = result if isinstance(result, int) else None
-                if isinstance(result, Death) and result.forwarded is not None:
-                    code = 128 + result.forwarded
+                code = _interrupt_status(result)
                 try:
-                    if code is not None and code >= 128:
+                    if code is not None:
                         interrupted = interrupted or code
                         continue
-                    if lane.item is None and code == 0:  # told to stop
+                    if lane.item is None and result == 0:  # told to stop
                         continue
                     if lane.item is None or not lane.started:  # only an internal error
                         how = result.message() if isinstance(result, Death) else \
                             f"exit status {result}"
                         raise UwcosimError(f"a supervised worker process ended between "
                                            f"items ({how})")
-                    if isinstance(result, int):  # it chose its status, e.g. the watchdog's 3
-                        result = Death(f"the process exited with status {result}",
-                                       lane.child.out_dir, None, None, lane.child.error)
-                    yield lane.item, result
+                    yield lane.item, _death(result, lane.child)
                 finally:
                     lane.child.close()
                     os.close(lane.tasks)
@@ -485,9 +497,7 @@ def supervised_pool(func: Callable[[T], object], items: Sequence[T], workers: in
         if interrupted is None and stopping():
             interrupted = 128 + _forwarder.signals[signals_before]
         if interrupted is not None:
-            err = RunInterrupted(f"interrupted by signal {interrupted - 128}")
-            err.exit_code = interrupted
-            raise err
+            raise _interrupted(interrupted)
     finally:
         for lane in lanes.values():
             lane.child.close()
@@ -499,22 +509,13 @@ def _lane_child(func: Callable, items: Sequence, tasks: int, parents_end: int) -
     """A child of :func:`supervised_pool`: the items whose indices the parent writes to the
     pipe ``tasks``, one per line, until ``stop``."""
     os.close(parents_end)
-    with os.fdopen(tasks, "rb", buffering=0) as pipe:
+    with os.fdopen(tasks, "rb") as pipe:
         try:  # interrupted in an item or waiting for one
-            while (line := _readline(pipe)) not in (b"", b"stop"):
+            while (line := pipe.readline().strip()) not in (b"", b"stop"):
                 i = int(line)
                 tell("item", str(i))
                 result = func(items[i])
                 tell("result", json.dumps(result))
         except (KeyboardInterrupt, RunInterrupted) as exc:
-            signum = getattr(exc, "signum", None)
-            return 128 + signum if signum else int(getattr(exc, "exit_code", 130))
+            return _stop_status(exc)
     return 0
-
-
-def _readline(pipe) -> bytes:
-    """One line of the unbuffered ``pipe`` without its newline (b"" at its end)."""
-    out = b""
-    while (c := pipe.read(1)) not in (b"", b"\n"):
-        out += c
-    return out

@@ -16,6 +16,7 @@ from uwcosim.master.master import Master
 from uwcosim.master.observer import Observer
 from uwcosim.reports.run_report import report_run
 from uwcosim.run import simulate as _simulate
+from uwcosim.run.contained import run_contained
 from uwcosim.run.simulate import RunResult
 from uwcosim.runlog.rundir import LOG_FILE
 from uwcosim.scenario.loaded import LoadedScenario
@@ -25,13 +26,27 @@ __all__ = ["report", "run_scenario"]
 
 def run_scenario(scenario: LoadedScenario | str | Path, out_dir: str | Path | None = None,
                  seed: int | None = None, figures: bool | None = None,
-                 progress: Observer | None = None, master: Master | None = None) -> RunResult:
+                 progress: Observer | None = None, master: Master | None = None,
+                 contained: bool = False) -> RunResult:
     """:func:`~uwcosim.run.simulate.simulate`, :func:`~uwcosim.evaluation.evaluate` and
     (unless ``figures`` is false, or ``[output] figures`` when None)
-    :func:`~uwcosim.reports.run_report.report_run` of ``scenario`` into ``out_dir``. A failed
-    or interrupted run raises after its log and summary are written."""
-    return _simulate.run_scenario(scenario, out_dir, seed=seed, figures=figures,
-                                  progress=progress, master=master, report=report_run)
+    :func:`~uwcosim.reports.run_report.report_run` of ``scenario`` into ``out_dir`` (default
+    ``runs/<scenario file stem>``). A failed or interrupted run raises after its log and
+    summary are written.
+
+    ``contained=True``: the run in a supervised child process, as ``uwcosim run`` does
+    (:mod:`uwcosim.run.contained`), so that an FMU that ends its process (a crash, ``exit``)
+    or the watchdog of ``run.fmu_timeout_s`` ends the child, not the caller: that run raises
+    :class:`~uwcosim.core.errors.FMUError` with the line ``uwcosim run`` prints, its log kept.
+    ``progress`` and ``master`` are then used in the child."""
+    loaded = _simulate.as_loaded(scenario)
+    out = Path(out_dir) if out_dir is not None else _simulate.default_out_dir(loaded)
+
+    def job() -> RunResult:
+        return _simulate.run_scenario(loaded, out, seed=seed, figures=figures,
+                                      progress=progress, master=master, report=report_run)
+
+    return run_contained(job, out) if contained else job()
 
 
 def report(path: str | Path, out: str | Path | None = None, html: bool = False) -> Path:

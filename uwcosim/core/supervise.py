@@ -328,7 +328,8 @@ def supervised_map(func: Callable[[T], object], items: Sequence[T]
     temporary folder (a run directory in it, :attr:`Death.out_dir`) still exists, and a new
     child goes on with item ``i + 1``. Interrupted (a signal passed on to the child, which
     stops as a run does): :class:`~uwcosim.core.errors.RunInterrupted` with the exit status
-    128 + signal; the item in progress is not yielded. ``UWCOSIM_SUPERVISE=0``: in this
+    128 + signal (its message the child's one-line error, if it reported one); the item in
+    progress is not yielded. ``UWCOSIM_SUPERVISE=0``: in this
     process."""
     if not enabled():
         for i, item in enumerate(items):
@@ -349,7 +350,7 @@ def supervised_map(func: Callable[[T], object], items: Sequence[T]
             result = child.result
             code = _interrupt_status(result)
             if code is not None:
-                raise _interrupted(code)
+                raise _interrupted(code, child.error)
             if current is None:  # between items: only an internal error ends it so
                 if start < len(items):
                     how = result.message() if isinstance(result, Death) else \
@@ -370,8 +371,10 @@ def _interrupt_status(result: int | Death) -> int | None:
     return result if result >= 128 else None
 
 
-def _interrupted(code: int) -> RunInterrupted:
-    err = RunInterrupted(f"interrupted by signal {code - 128}")
+def _interrupted(code: int, error: str | None = None) -> RunInterrupted:
+    """The interrupt of a child stopped with status ``code``: its own one-line error, if it
+    reported one (the run stopped in an FMU call by the watcher), else the signal."""
+    err = RunInterrupted(error or f"interrupted by signal {code - 128}")
     err.exit_code = code
     return err
 

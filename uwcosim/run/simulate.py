@@ -206,10 +206,17 @@ def _flush_steps(bank, recorder) -> None:
     recorder.flush()
 
 
-def _as_loaded(scenario: LoadedScenario | str | Path) -> LoadedScenario:
+def as_loaded(scenario: LoadedScenario | str | Path) -> LoadedScenario:
+    """``scenario`` as loaded (a file's path is loaded with no override)."""
     if isinstance(scenario, LoadedScenario):
         return scenario
     return load_scenario(scenario)
+
+
+def default_out_dir(loaded: LoadedScenario) -> Path:
+    """The run directory of a run not given one: ``runs/<scenario file stem>``, as
+    ``uwcosim run``."""
+    return Path("runs") / loaded.path.stem
 
 
 def _density_steps(master: Master, times: list[float]) -> set[int]:
@@ -257,8 +264,8 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
     A failure is raised (:class:`~uwcosim.core.errors.UwcosimError`) after the files are
     written.
     """
-    loaded = _as_loaded(scenario)
-    out_dir = Path(out_dir) if out_dir is not None else Path("runs") / loaded.path.stem
+    loaded = as_loaded(scenario)
+    out_dir = Path(out_dir) if out_dir is not None else default_out_dir(loaded)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         probe = out_dir / ".write-test"
@@ -266,8 +273,8 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
         probe.unlink()
         (out_dir / SIMULATION_FILE).unlink(missing_ok=True)  # never a stale one
     except OSError as exc:
-        raise UwcosimError(f"{out_dir}: output directory is not writable "
-                           f"({exc.strerror or exc})") from None
+        raise OutputError(f"{out_dir}: output directory is not writable "
+                          f"({exc.strerror or exc})") from None
     spec = loaded.spec
     bathy = scenario_map(loaded)
     overrides: dict[str, dict] = {}
@@ -531,7 +538,7 @@ def run_scenario(scenario: LoadedScenario | str | Path, out_dir: str | Path | No
     figure; :func:`uwcosim.api.run_scenario` passes :func:`uwcosim.reports.report_run`).
     A failed or interrupted run raises after its log and summary are written.
     """
-    loaded = _as_loaded(scenario)
+    loaded = as_loaded(scenario)
     out_dir = simulate(loaded, out_dir, seed=seed, progress=progress, master=master)
     summary = json.loads((out_dir / SUMMARY_FILE).read_text())
     result = RunResult(out_dir, summary, out_dir / LOG_FILE, summary["status"])

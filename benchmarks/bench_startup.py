@@ -282,9 +282,15 @@ def main() -> int:
     print(f"\n## Numba's share of `run tan_terrain` in one process (median of {args.repeat}, "
           f"s)\n\n| part | s |\n|---|---|\n| import numba | {med['import']:.2f} |\n"
           f"| kernel loads from the cache (target set-up included) | {med['loads']:.2f} |\n"
+
           f"| everything else after the interpreter's start | "
           f"{med['total'] - med['import'] - med['loads']:.2f} |\n"
           f"| whole run in process | {med['total']:.2f} |")
+    floor = statistics.median(w for w, _ in times[
+        "imports of run tan_terrain alone: third-party and Numba"]) + med["loads"]
+    print(f"\nfloor of a 10-step `run tan_terrain` with Numba's cached kernels: the third-party "
+          f"imports with Numba (whole command, above) plus the kernel loads = {floor:.2f} s, "
+          f"before any uwcosim module or work (goal of issue 22: <= 1.0 s)")
     shutil.rmtree(tmp, ignore_errors=True)
     return 0
 

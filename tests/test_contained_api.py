@@ -1,5 +1,5 @@
-"""``uwcosim.run_scenario(..., contained=True)``: the Python API's run in a supervised child
-(:mod:`uwcosim.run.contained`). An FMU that ends its process, or the watchdog of
+"""``uwcosim.run_scenario`` and ``simulate`` with ``contained=True``: the Python API's run in a
+supervised child (:mod:`uwcosim.run.contained`). An FMU that ends its process, or the watchdog of
 ``run.fmu_timeout_s``, ends the child, not the caller (this test process), which gets an
 ``FMUError`` with the line ``uwcosim run`` prints and the log up to the end; a run's own error
 comes back as it is; a signal stops the run as it stops ``uwcosim run``; a contained run's log
@@ -45,12 +45,16 @@ def no_fault_dump():
         faulthandler.enable(sys.__stderr__)
 
 
+@pytest.mark.parametrize("stage", ["run_scenario", "simulate"])
 def test_an_fmu_that_ends_the_process_ends_the_child_not_the_caller(tmp_path, project_fmus,
-                                                                    no_fault_dump):
+                                                                    no_fault_dump, stage):
     out = tmp_path / "run"
+    loaded = _loaded(*_crasher("segfault", "doStep", 5.0))
     with pytest.raises(FMUError) as info:
-        uwcosim.run_scenario(_loaded(*_crasher("segfault", "doStep", 5.0)), out, figures=False,
-                             contained=True)
+        if stage == "simulate":
+            uwcosim.simulate(loaded, out, contained=True)
+        else:
+            uwcosim.run_scenario(loaded, out, figures=False, contained=True)
     assert str(info.value) == (
         "FMU 'crash' ended the process during doStep at t=5 (killed by SIGSEGV; set "
         f"[fmus.crash] timeout_s to run it in a worker process) (log up to t=5 kept in "
@@ -78,12 +82,15 @@ def test_a_contained_run_gives_the_in_process_runs_log(tmp_path, project_fmus):
     loaded = _loaded()
     here = uwcosim.run_scenario(loaded, tmp_path / "here", figures=False)
     there = uwcosim.run_scenario(loaded, tmp_path / "there", figures=False, contained=True)
+    assert uwcosim.simulate(loaded, tmp_path / "sim", contained=True) == tmp_path / "sim"
     assert there.status == here.status == "ok"
     assert there.out_dir == tmp_path / "there" and there.log_path == there.out_dir / "log.parquet"
     a, b = read_log(here.log_path)[0], read_log(there.log_path)[0]
     assert sorted(a) == sorted(b)
+    c = read_log(tmp_path / "sim" / "log.parquet")[0]
     for name in a:
         np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+        np.testing.assert_array_equal(a[name], c[name], err_msg=name)
     for key in ("rmse_position_m", "anees"):
         assert there.summary["estimators"]["ekf"][key] == here.summary["estimators"]["ekf"][key]
 

@@ -16,7 +16,6 @@ from uwcosim.master.master import Master
 from uwcosim.master.observer import Observer
 from uwcosim.reports.run_report import report_run
 from uwcosim.run import simulate as _simulate
-from uwcosim.run.contained import run_contained
 from uwcosim.run.simulate import RunResult
 from uwcosim.runlog.rundir import LOG_FILE
 from uwcosim.scenario.loaded import LoadedScenario
@@ -39,14 +38,9 @@ def run_scenario(scenario: LoadedScenario | str | Path, out_dir: str | Path | No
     or the watchdog of ``run.fmu_timeout_s`` ends the child, not the caller: that run raises
     :class:`~uwcosim.core.errors.FMUError` with the line ``uwcosim run`` prints, its log kept.
     ``progress`` and ``master`` are then used in the child."""
-    loaded = _simulate.as_loaded(scenario)
-    out = Path(out_dir) if out_dir is not None else _simulate.default_out_dir(loaded)
-
-    def job() -> RunResult:
-        return _simulate.run_scenario(loaded, out, seed=seed, figures=figures,
-                                      progress=progress, master=master, report=report_run)
-
-    return run_contained(job, out) if contained else job()
+    return _simulate.run_scenario(scenario, out_dir, seed=seed, figures=figures,
+                                  progress=progress, master=master, report=report_run,
+                                  contained=contained)
 
 
 def report(path: str | Path, out: str | Path | None = None, html: bool = False) -> Path:

@@ -1,27 +1,27 @@
-"""A run of the Python API in a supervised child process (``run_scenario(..., contained=True)``).
+"""A run of the Python API in a supervised child process (``simulate`` and ``run_scenario`` with
+``contained=True``).
 
 An in-process FMU can end the process that calls it (``exit``, ``abort``, a segmentation
 fault), and the run-wide watchdog (``run.fmu_timeout_s``) ends the process of a run whose FMU
 does not come back: from the command line that process is a supervised child
 (:mod:`uwcosim.core.supervise`), from Python it is the caller's own (a notebook's kernel, a
 script with other work in memory). :func:`run_contained` runs the run in a forked child as the
-command line does: the caller's process only waits, and gets the run's
-:class:`~uwcosim.run.simulate.RunResult`, or the error the run raised (the same exception,
-with the child's traceback as a note), or -- when the child was ended -- an
+command line does: the caller's process only waits; it returns when the run's files are
+written, or raises the error the run raised (the same exception, with the child's traceback as
+a note), or -- when the child was ended -- an
 :class:`~uwcosim.core.errors.FMUError` naming the FMU call it was in, after the run directory
 was finished from its files (every row up to the end kept, :mod:`uwcosim.run.aftermath`).
 
 What runs in the child stays there: an observer passed as ``progress`` is called in the child
 (what it prints is seen, what it collects is not), a :class:`~uwcosim.master.master.Master`
-passed is used by the child and left as it was in the caller. The result comes back through the
-run directory's files. Where the platform cannot fork, or with ``UWCOSIM_SUPERVISE=0``, the run
-is in the caller's process.
+passed is used by the child and left as it was in the caller. The result comes back through
+the run directory's files (the callers read them). Where the platform cannot fork, or with
+``UWCOSIM_SUPERVISE=0``, the run is in the caller's process.
 """
 
 from __future__ import annotations
 
 import base64
-import json
 import pickle
 import traceback
 from collections.abc import Callable
@@ -31,18 +31,17 @@ from pathlib import Path
 from uwcosim.core.errors import FMUError, RunInterrupted, UwcosimError
 from uwcosim.core.supervise import Death, announce, enabled, supervised_map
 from uwcosim.run.aftermath import finish_dead_run
-from uwcosim.run.simulate import RunResult
 from uwcosim.runlog.parquet import unfinished
-from uwcosim.runlog.rundir import LOG_FILE, SUMMARY_FILE
+from uwcosim.runlog.rundir import LOG_FILE
 
 
-def run_contained(job: Callable[[], RunResult], out_dir: str | Path) -> RunResult:
-    """``job()`` (a run into ``out_dir``) in a supervised child: its
-    :class:`~uwcosim.run.simulate.RunResult` read back from ``out_dir``, or what it raised,
-    raised here (see the module docstring)."""
+def run_contained(job: Callable[[], object], out_dir: str | Path) -> None:
+    """``job()`` (a run into ``out_dir``) in a supervised child; what it raised, raised here
+    (see the module docstring)."""
     out_dir = Path(out_dir)
     if not enabled():
-        return job()
+        job()
+        return
     answer: object = {}  # the child's answer: {} (done), an error, or the FMUError of a death
     try:
         for _, answer in supervised_map(partial(_in_child, job, out_dir), [None]):
@@ -57,11 +56,9 @@ def run_contained(job: Callable[[], RunResult], out_dir: str | Path) -> RunResul
         raise answer
     if "error" in answer:
         raise _error(answer)
-    summary = json.loads((out_dir / SUMMARY_FILE).read_text())
-    return RunResult(out_dir, summary, out_dir / LOG_FILE, summary["status"])
 
 
-def _in_child(job: Callable[[], RunResult], out_dir: Path, _item) -> dict:
+def _in_child(job: Callable[[], object], out_dir: Path, _item) -> dict:
     """The child's side: where the run directory is (finished by the parent if the child
     dies), then the run; an error it raises goes back to the parent as it is."""
     announce(out_dir)

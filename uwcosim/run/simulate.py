@@ -58,6 +58,7 @@ from uwcosim.master.system import System
 from uwcosim.models.states import position_velocity_indices
 from uwcosim.run.bank import EstimatorBank, plans
 from uwcosim.run.bound import bound_runs, scenario_bound
+from uwcosim.run.contained import run_contained
 from uwcosim.run.density import DensitySnapshots
 from uwcosim.run.divergence import DivergenceCheck, default_bound
 from uwcosim.run.factory import build_model, scenario_map
@@ -245,7 +246,8 @@ def _add_estimation(master: Master, loaded: LoadedScenario, bathy, model) -> Est
 
 def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None = None,
              seed: int | None = None, progress: Observer | None = None,
-             master: Master | None = None, evaluate: bool = True) -> Path:
+             master: Master | None = None, evaluate: bool = True,
+             contained: bool = False) -> Path:
     """Run ``scenario`` (loaded, or a file) into ``out_dir`` (created): ``log.parquet``,
     ``simulation.json``, ``map.bin``, ``densities.npz`` (default ``out_dir``:
     ``runs/<scenario file stem>``, as ``uwcosim run``); with ``evaluate`` also
@@ -263,9 +265,19 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
     of :mod:`uwcosim.core.runguard`, which finalizes the log and summary and ends the process.
     A failure is raised (:class:`~uwcosim.core.errors.UwcosimError`) after the files are
     written.
+
+    ``contained=True``: the run in a supervised child process, as ``uwcosim run`` does
+    (:mod:`uwcosim.run.contained`): an FMU that ends its process (a crash, ``exit``) or the
+    watchdog of ``run.fmu_timeout_s`` ends the child, not the caller, which gets
+    :class:`~uwcosim.core.errors.FMUError` with the line ``uwcosim run`` prints, the log kept;
+    ``progress`` and ``master`` are then used in the child.
     """
     loaded = as_loaded(scenario)
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(loaded)
+    if contained:
+        run_contained(functools.partial(simulate, loaded, out_dir, seed=seed, progress=progress,
+                                        master=master, evaluate=evaluate), out_dir)
+        return out_dir
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         probe = out_dir / ".write-test"
@@ -531,17 +543,24 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
 def run_scenario(scenario: LoadedScenario | str | Path, out_dir: str | Path | None = None,
                  seed: int | None = None, figures: bool | None = None,
                  progress: Observer | None = None, master: Master | None = None,
-                 report: ReportStage | None = None) -> RunResult:
+                 report: ReportStage | None = None, contained: bool = False) -> RunResult:
     """:func:`simulate` and :func:`~uwcosim.evaluation.evaluate` of ``scenario`` into
     ``out_dir``, then (unless ``figures`` is false, or ``[output] figures`` when None) the
     report stage ``report(out_dir, summary=...)`` (the caller's: the run layer draws no
     figure; :func:`uwcosim.api.run_scenario` passes :func:`uwcosim.reports.report_run`).
     A failed or interrupted run raises after its log and summary are written.
+    ``contained``: as :func:`simulate`'s, the report stage too in the child.
     """
     loaded = as_loaded(scenario)
+    if contained:
+        out_dir = Path(out_dir) if out_dir is not None else default_out_dir(loaded)
+        run_contained(functools.partial(run_scenario, loaded, out_dir, seed=seed,
+                                        figures=figures, progress=progress, master=master,
+                                        report=report), out_dir)
+        return read_result(out_dir)
     out_dir = simulate(loaded, out_dir, seed=seed, progress=progress, master=master)
-    summary = json.loads((out_dir / SUMMARY_FILE).read_text())
-    result = RunResult(out_dir, summary, out_dir / LOG_FILE, summary["status"])
+    result = read_result(out_dir)
+    summary = result.summary
     if report is None or not (loaded.spec.output.figures if figures is None else figures):
         return result
     try:
@@ -550,6 +569,12 @@ def run_scenario(scenario: LoadedScenario | str | Path, out_dir: str | Path | No
         raise failed_output(out_dir, exc, "the report and figures (the run itself finished)",
                             summary=summary) from None
     return result
+
+
+def read_result(out_dir: Path) -> RunResult:
+    """The :class:`RunResult` of the run directory ``out_dir`` (its ``summary.json``)."""
+    summary = json.loads((out_dir / SUMMARY_FILE).read_text())
+    return RunResult(out_dir, summary, out_dir / LOG_FILE, summary["status"])
 
 
 def output_error(out_dir: Path, exc: OSError, what: str) -> OutputError:

@@ -58,3 +58,28 @@ def test_one_worker_is_the_supervised_map():
     results = list(supervise.supervised_pool(_job, items, 1))
     assert [i for i, _ in results] == [0, 1, 2]
     assert isinstance(results[1][1], supervise.Death)
+
+
+
+def _ok_or_announce_and_die(item: tuple[str, int]) -> int:
+    """``ok``: returns ``n``; ``die``: says its run directory at once, then kills its own
+    process."""
+    what, n = item
+    if what == "die":
+        supervise.announce(f"/runs/{n}")
+        os.kill(os.getpid(), signal.SIGKILL)
+    return n
+
+
+def test_the_death_of_a_job_names_the_run_directory_it_said_at_once():
+    """While the caller holds a result, the child starts its next job, says its run directory
+    and dies: the parent then reads ``item`` and ``out`` at once, and the directory is that
+    job's (not cleared by the start of the job it belongs to)."""
+    items = [("ok", 0), ("die", 1), ("ok", 2), ("die", 3)]
+    seen = {}
+    for i, result in supervise.supervised_map(_ok_or_announce_and_die, items):
+        seen[i] = result
+        time.sleep(0.3)  # the child goes on meanwhile
+    assert seen[0] == 0 and seen[2] == 2
+    assert (seen[1].out_dir, seen[3].out_dir) == ("/runs/1", "/runs/3")
+    assert seen[1].how == seen[3].how == "killed by SIGKILL"

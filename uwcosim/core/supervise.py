@@ -257,7 +257,9 @@ class Child:
     def read(self) -> list[tuple[str, str]] | None:
         """One read of the pipe (blocks until the child says something or ends): the
         ``(key, value)`` messages it completed; None when the child has ended (then
-        :attr:`result` is set)."""
+        :attr:`result` is set). An ``item`` message (the start of a job) clears the run
+        directory and the error of the job before, in the order the child said them (the next
+        job's ``out`` may come in the same read)."""
         chunk = os.read(self._r, 65536)
         if not chunk:
             self._reap()
@@ -274,6 +276,8 @@ class Child:
             elif key == "error":
                 self.error = value
             else:
+                if key == "item":
+                    self.out_dir = self.error = None
                 out.append((key, value))
         return out
 
@@ -343,7 +347,6 @@ def supervised_map(func: Callable[[T], object], items: Sequence[T]
             for key, value in child.messages():
                 if key == "item":
                     current = int(value)
-                    child.out_dir = child.error = None
                 elif key == "result":
                     yield current, json.loads(value)
                     start, current = current + 1, None

@@ -61,3 +61,26 @@ def test_log_chunks_are_readable_before_close(tmp_path):
     assert list(cols)[0] == "time"
 
 
+
+
+def test_the_tail_keeps_64_bit_integers_that_float64_holds(tmp_path):
+    """A log whose writer never closed it (a crash) is read from its tail: Int64 and UInt64
+    values come back exactly up to 2**53 in magnitude, null beyond; Strings are null."""
+    path = tmp_path / "log.parquet"
+    log = RunLogger(path, ["a", "n", "u", "s"], [], {"seed": 1}, chunk=100,
+                    dtypes={"n": np.int64, "u": np.uint64, "s": object})
+    ints = [-2**53, -1, 0, 2**60, 2**53]
+    uints = [0, 1, 2**53, 3, 2**64 - 1]
+    for k in range(5):
+        log.append(np.array([k, k * 0.5, np.nan, np.nan, np.nan]), np.zeros(0, dtype=bool),
+                   [ints[k], uints[k], f"s{k}"])
+    assert log.rows_written == 0  # every row only in the tail file
+    cols, _ = read_log(path)
+    np.testing.assert_array_equal(cols["n"], [-2.0**53, -1, 0, np.nan, 2.0**53])
+    np.testing.assert_array_equal(cols["u"], [0, 1, 2.0**53, 3, np.nan])
+    assert cols["s"].tolist() == [None] * 5
+    np.testing.assert_array_equal(cols["a"], np.arange(5) * 0.5)
+    log.close()
+    cols, _ = read_log(path)  # closed: every value exact
+    assert cols["n"].tolist() == ints and cols["u"].tolist() == uints
+    assert cols["s"].tolist() == [f"s{k}" for k in range(5)]

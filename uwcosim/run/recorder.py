@@ -156,7 +156,8 @@ class LogRecorder:
         meas = view.measurement()
         row[lay.measurement_part] = meas.z
         received = [bool(r) for r in meas.received]
-        self.logger.stage(k, row, received)  # kept if the process dies before its estimates
+        # kept if the process dies before its estimates
+        self.logger.stage(k, row, received, exact)
         self._rows[k] = (row, received, exact)
         self._drain()
 

@@ -42,6 +42,8 @@ if TYPE_CHECKING:
 
 #: dtypes whose values are passed exactly (not through the float64 row): String, Int64, UInt64
 EXACT = (np.dtype(object), np.dtype(np.int64), np.dtype(np.uint64))
+#: the largest integer magnitude below which every integer is a float64 (2**53)
+EXACT_FLOAT = 2 ** 53
 
 
 def arrow_type(dtype: np.typing.DTypeLike) -> pa.DataType:
@@ -85,6 +87,10 @@ class RunLogger:
                        if np.dtype(d) != np.dtype(np.float64)}
         #: columns whose values come exactly, in the order of ``append(..., exact)``
         self.exact_columns = [c for c in self.columns if self.dtypes.get(c) in EXACT]
+        #: (row position, position in ``exact``) of the 64-bit integer columns: the tail file
+        #: holds their values as float64 where that is exact (``|v| <= 2**53``)
+        self._exact_ints = [(self.columns.index(c), j) for j, c in enumerate(self.exact_columns)
+                            if self.dtypes[c] != np.dtype(object)]
         self._e: list[list] = [[] for _ in self.exact_columns]
         self._f = np.full((self.chunk, len(self.columns)), np.nan)
         self._b = np.zeros((self.chunk, len(self.bool_columns)), dtype=bool)
@@ -113,11 +119,24 @@ class RunLogger:
         except OSError:
             pass
 
-    def stage(self, k: int, values: np.ndarray, flags: Sequence[bool]) -> None:
+    def stage(self, k: int, values: np.ndarray, flags: Sequence[bool],
+              exact: Sequence = ()) -> None:
         """Row ``k`` as recorded so far (``values`` NaN where it waits for estimates; the
-        first ``flags``): kept in the tail file only, until :meth:`append` gets it whole."""
+        first ``flags``; ``exact`` as :meth:`append`'s): kept in the tail file only, until
+        :meth:`append` gets it whole."""
         if self._tail is not None:
-            self._tail.put(k, values, flags)
+            self._tail.put(k, self._tail_row(values, exact), flags)
+
+    def _tail_row(self, values: np.ndarray, exact: Sequence) -> np.ndarray:
+        """``values`` with the 64-bit integer columns' values where float64 holds them
+        exactly (NaN, read back as null, where it does not or none was given)."""
+        if not self._exact_ints or not exact:
+            return values
+        row = np.array(values, dtype=np.float64)
+        for i, j in self._exact_ints:
+            v = exact[j]
+            row[i] = float(v) if v is not None and -EXACT_FLOAT <= v <= EXACT_FLOAT else np.nan
+        return row
 
     def append(self, values: np.ndarray, flags: np.ndarray, exact: Sequence = ()) -> None:
         """Append one row: ``values`` in ``columns`` order (time first), ``flags`` booleans,
@@ -128,7 +147,7 @@ class RunLogger:
             self._f[self._n] = values
             self._b[self._n] = flags
             if self._tail is not None:
-                self._tail.put(self.rows_written + self._n, values, flags)
+                self._tail.put(self.rows_written + self._n, self._tail_row(values, exact), flags)
             for store, v in zip(self._e, exact):
                 store.append(v)
             self._n += 1

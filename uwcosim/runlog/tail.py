@@ -10,8 +10,8 @@ again when it is complete (by the logger): a file mapped into memory (``mmap``, 
 stores are in the kernel's page cache and so in the file whatever happens to the process (not
 after a power loss). :func:`tail_table` reads them back: the rows of consecutive steps from the
 journal's last row on, appended by :func:`uwcosim.runlog.recover_log` and :func:`read_log`.
-Their String and 64-bit integer columns are null (the tail holds float64 values). A clean close
-removes the file.
+The tail holds float64 values: its 64-bit integer columns are exact up to 2**53 in magnitude
+(null beyond), its String columns null. A clean close removes the file.
 
 Layout: ``MAGIC``, then int64 ``width`` (the value columns, ``time`` first), ``n_flags``,
 ``capacity`` (slots) and the length of the Arrow schema that follows (padded to 8 bytes);
@@ -123,8 +123,13 @@ def tail_table(path: str | Path, start: int) -> tuple[pa.Schema, pa.Table | None
 
 
 def _column(values: np.ndarray, type_: pa.DataType) -> pa.Array:
-    """A tail column as the log's type: null where float64 cannot hold the values exactly."""
-    if pa.types.is_string(type_) or type_ in (pa.int64(), pa.uint64()):
+    """A tail column as the log's type: null where float64 cannot hold the values exactly (a
+    String column; a 64-bit integer beyond 2**53, NaN in the tail)."""
+    if pa.types.is_string(type_):
         return pa.nulls(len(values), type_)
+    if type_ in (pa.int64(), pa.uint64()):
+        missing = np.isnan(values)
+        ints = np.where(missing, 0.0, values).astype(type_.to_pandas_dtype())
+        return pa.array(ints, type=type_, mask=missing)
     with np.errstate(invalid="ignore"):  # an integer column's NaN (never set) -> its cast
         return pa.array(values.astype(np.dtype(type_.to_pandas_dtype())), type=type_)

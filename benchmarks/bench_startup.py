@@ -24,7 +24,9 @@ Measured in one run, side by side (the machine is shared: compare the rows, not 
    importtime``), the self time of every module summed by top-level package (numba, scipy,
    casadi, ...): where the fixed cost of a run is; which of numba, matplotlib and pandas a run
    imports; and how many compiled kernels (specializations) ``tan_terrain`` loads from Numba's
-   cache (``NUMBA_DEBUG_CACHE``).
+   cache (``NUMBA_DEBUG_CACHE``); Numba's share of that run in one process (its import, its
+   kernel loads), and the floor of a terrain start: the third-party imports with Numba plus
+   the kernel loads.
 
 The timed commands run without ``PYTHONDONTWRITEBYTECODE`` (if the shell sets it): with it, every
 start compiles the package's modules from source (0.2-0.3 s), which a user's installation does

@@ -333,8 +333,7 @@ def supervised_map(func: Callable[[T], object], items: Sequence[T]
     child goes on with item ``i + 1``. Interrupted (a signal passed on to the child, which
     stops as a run does): :class:`~uwcosim.core.errors.RunInterrupted` with the exit status
     128 + signal (its message the child's one-line error, if it reported one); the item in
-    progress is not yielded. ``UWCOSIM_SUPERVISE=0``: in this
-    process."""
+    progress is not yielded. ``UWCOSIM_SUPERVISE=0``: in this process."""
     if not enabled():
         for i, item in enumerate(items):
             yield i, func(item)

@@ -42,7 +42,7 @@ if TYPE_CHECKING:
 
 #: dtypes whose values are passed exactly (not through the float64 row): String, Int64, UInt64
 EXACT = (np.dtype(object), np.dtype(np.int64), np.dtype(np.uint64))
-#: the largest integer magnitude below which every integer is a float64 (2**53)
+#: every integer of at most this magnitude is exactly a float64
 EXACT_FLOAT = 2 ** 53
 
 

@@ -48,7 +48,7 @@ from uwcosim.core.process import die_with_parent
 from uwcosim.core.supervise import Death, announce, supervised_pool
 from uwcosim.core.supervise import enabled as supervised
 from uwcosim.master.master import Master
-from uwcosim.run.aftermath import finish_dead_run
+from uwcosim.run.aftermath import finish_death
 from uwcosim.run.simulate import run_scenario
 from uwcosim.scenario import load_scenario, to_system
 
@@ -125,9 +125,8 @@ def execute_run(task: Task) -> dict:
 def dead_run_record(task: Task, death: Death) -> dict:
     """The record of a run whose process ended in it (:func:`supervised_pool`): failed, with the
     one line ``uwcosim run`` would print; its run directory finished and kept."""
-    error = death.message()
+    error = finish_death(death.out_dir, death.message(), death.error is not None)
     if death.out_dir is not None:
-        error = finish_dead_run(death.out_dir, error)
         if not task.log_dir:  # a temporary run directory: kept under failed/
             error = _kept_failed(error, death.out_dir, task)
     return {"variant": task.variant, "run": task.run, "seed": task.seed, "status": "failed",

@@ -223,7 +223,8 @@ class RunGuard:
         process.kill_workers()
         scratch.remove_all()  # os._exit runs no atexit handler or finalizer
         try:
-            print(f"uwcosim: error: {message}", file=sys.stderr, flush=True)
+            if not supervise.parent_reports():  # else the parent's line or exception says it
+                print(f"uwcosim: error: {message}", file=sys.stderr, flush=True)
         finally:  # the run chose its exit status (a supervised child), and said why
             supervise.report_error(message)
             supervise.done(code)

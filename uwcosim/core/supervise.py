@@ -59,6 +59,7 @@ T = TypeVar("T")
 
 _FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 _fd: int | None = None  # the child's end of the pipe
+_parent_reports = False  # a child of supervised_map or supervised_pool (see parent_reports)
 
 
 @dataclass
@@ -100,6 +101,14 @@ def done(code: int) -> None:
 def report_error(message: str) -> None:
     """In a supervised child: the one-line error it ends with (before :func:`done`)."""
     tell("error", message)
+
+
+def parent_reports() -> bool:
+    """Whether this process is a child of :func:`supervised_map` or :func:`supervised_pool`,
+    whose parent reports the one-line error the child ends with (:func:`report_error`; a
+    campaign's line, the Python API's exception), so that the child does not print it too.
+    The child of :func:`supervise` (``uwcosim run``) prints its own."""
+    return _parent_reports
 
 
 def tell(key: str, value: str) -> None:
@@ -397,6 +406,8 @@ def _stop_status(exc: BaseException) -> int:
 
 
 def _map_child(func: Callable, items: Sequence, start: int) -> int:
+    global _parent_reports
+    _parent_reports = True
     for i in range(start, len(items)):
         tell("item", str(i))
         try:
@@ -513,6 +524,8 @@ def supervised_pool(func: Callable[[T], object], items: Sequence[T], workers: in
 def _lane_child(func: Callable, items: Sequence, tasks: int, parents_end: int) -> int:
     """A child of :func:`supervised_pool`: the items whose indices the parent writes to the
     pipe ``tasks``, one per line, until ``stop``."""
+    global _parent_reports
+    _parent_reports = True
     os.close(parents_end)
     with os.fdopen(tasks, "rb") as pipe:
         try:  # interrupted in an item or waiting for one

@@ -56,3 +56,17 @@ def finish_dead_run(out_dir: str | Path, message: str, status: str = "failed") -
         except OSError:
             pass
     return message
+
+
+def finish_death(out_dir: str | Path | None, message: str, reported: bool,
+                 status: str = "failed") -> str:
+    """:func:`finish_dead_run` of the run directory of a process that ended (None: it had none
+    yet), unless that process finished it itself and said so (``reported``: its own one-line
+    error, e.g. the watchdog's of ``run.fmu_timeout_s``, whose run wrote its log, simulation
+    record and summary before it ended): then ``message`` as it is, which names the log."""
+    if out_dir is None:
+        return message
+    if reported and not unfinished(Path(out_dir) / LOG_FILE):
+        return message
+    return finish_dead_run(out_dir, message, status)
+

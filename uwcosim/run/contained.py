@@ -30,9 +30,7 @@ from pathlib import Path
 
 from uwcosim.core.errors import FMUError, RunInterrupted, UwcosimError
 from uwcosim.core.supervise import Death, announce, enabled, supervised_map
-from uwcosim.run.aftermath import finish_dead_run
-from uwcosim.runlog.parquet import unfinished
-from uwcosim.runlog.rundir import LOG_FILE
+from uwcosim.run.aftermath import finish_death
 
 
 def run_contained(job: Callable[[], object], out_dir: str | Path) -> None:
@@ -46,10 +44,10 @@ def run_contained(job: Callable[[], object], out_dir: str | Path) -> None:
     try:
         for _, answer in supervised_map(partial(_in_child, job, out_dir), [None]):
             if isinstance(answer, Death):  # finished while the child's folders still exist
-                answer = FMUError(answer.error if answer.error is not None  # the watchdog's
-                                  else _finished(answer.out_dir, answer.message(), "failed"))
-    except RunInterrupted as exc:  # the child was stopped by a signal before it could say so
-        err = RunInterrupted(_finished(str(out_dir), str(exc), "interrupted"))
+                answer = FMUError(finish_death(answer.out_dir, answer.message(),
+                                               answer.error is not None))
+    except RunInterrupted as exc:  # the child was stopped by a signal: it may not have said so
+        err = RunInterrupted(finish_death(out_dir, str(exc), True, "interrupted"))
         err.exit_code = exc.exit_code
         raise err from None
     if isinstance(answer, FMUError):
@@ -91,12 +89,3 @@ def _error(answer: dict) -> Exception:
     exc.add_note("raised in the run's child process:\n" + answer["trace"].rstrip())
     return exc
 
-
-def _finished(out_dir: str | None, message: str, status: str) -> str:
-    """``message``, with the log's extent once a dead child's run directory is finished."""
-    if out_dir is None:
-        return message
-    log = Path(out_dir) / LOG_FILE
-    if status == "interrupted" and not unfinished(log):  # the child finished it itself
-        return message
-    return finish_dead_run(out_dir, message, status)

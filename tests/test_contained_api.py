@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import faulthandler
 import json
+import re
 import signal
 import subprocess
 import sys
@@ -109,19 +110,24 @@ def test_the_runs_own_error_comes_back_as_it_is(tmp_path, project_fmus):
                for n in there.value.__notes__)
 
 
-def test_a_signal_stops_a_contained_run_as_it_stops_uwcosim_run(tmp_path, project_fmus):
-    """A script's contained run, SIGINT to the script: the run stops at its step, the script
-    gets ``RunInterrupted`` (exit status 130) and goes on; the log is readable."""
+@pytest.mark.parametrize("where", ["in_an_fmu_call", "between_steps"])
+def test_a_signal_stops_a_contained_run_as_it_stops_uwcosim_run(tmp_path, project_fmus, where):
+    """A script's contained run, a signal to the script: the run stops at its step (in an FMU
+    call that does not return: the watcher stops it), the script gets ``RunInterrupted`` (exit
+    status 128 + signal) and goes on; the log is readable up to the step named."""
     out = tmp_path / "run"
-    crash = _crasher("sleep", "doStep", 5.0)
+    if where == "in_an_fmu_call":
+        sig, extra = signal.SIGINT, [*_crasher("sleep", "doStep", 5.0), "--set",
+                                     "run.duration=50", "--set", "run.fmu_timeout_s=600"]
+    else:  # a long run: the signal lands between two steps
+        sig, extra = signal.SIGTERM, ["--set", "run.duration=12000"]
     script = tmp_path / "script.py"
     script.write_text(textwrap.dedent(f"""\
         import sys
         import uwcosim
         from uwcosim.core.errors import RunInterrupted
         from uwcosim.scenario import load_scenario
-        sets = {[a for a in (*LIGHT, *crash, "--set", "run.duration=50",
-                             "--set", "run.fmu_timeout_s=600") if a != "--set"]!r}
+        sets = {[a for a in (*LIGHT, *extra) if a != "--set"]!r}
         try:
             uwcosim.run_scenario(load_scenario({str(SCEN)!r}, sets), {str(out)!r},
                                  figures=False, contained=True)
@@ -135,13 +141,20 @@ def test_a_signal_stops_a_contained_run_as_it_stops_uwcosim_run(tmp_path, projec
     while not (out / "log.parquet").exists():
         assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
         time.sleep(0.02)
-    time.sleep(3.0)  # inside the FMU's doStep at t=5, for an hour
-    proc.send_signal(signal.SIGINT)
+    time.sleep(3.0 if where == "in_an_fmu_call" else 0.5)  # at t=5 in the FMU, for an hour
+    proc.send_signal(sig)
     stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 0, stderr
     lines = stdout.splitlines()
-    assert lines[0].startswith("caught 130 interrupted") and "log up to t=5 kept" in lines[0], \
-        (stdout, stderr)
+    m = re.fullmatch(rf"caught {128 + sig} interrupted at t=(\d+) by {sig.name} "
+                     rf"\(log up to t=(\d+) kept in {re.escape(str(out))}/log.parquet\)",
+                     lines[0])
+    assert m, (stdout, stderr)
     assert lines[1] == "the script goes on"
-    assert read_log(out / "log.parquet")[0]["time"].tolist() == [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]
+    t = read_log(out / "log.parquet")[0]["time"]
+    assert t[-1] == float(m[2]) and t.tolist() == [float(k) for k in range(t.size)]
+    if where == "in_an_fmu_call":
+        assert t[-1] == 5.0
+    else:
+        assert 0 < t[-1] < 12000
     assert json.loads((out / "summary.json").read_text())["status"] == "interrupted"

@@ -143,7 +143,7 @@ class _Progress:
 
 def _cmd_run(args) -> int:
     from uwcosim.core.supervise import announce
-    from uwcosim.run.simulate import default_out_dir, run_scenario
+    from uwcosim.run.simulate import out_dir_of, run_scenario
     from uwcosim.runlog.rundir import prepare_out_dir
     from uwcosim.scenario.load import load_scenario
     from uwcosim.scenario.shipped import scenario_fmus
@@ -151,7 +151,7 @@ def _cmd_run(args) -> int:
     loaded = load_scenario(_scenario_path(args.scenario), args.set or [],
                            overrides_base=Path.cwd())
     _provide_fmus(scenario_fmus(loaded))
-    out = Path(args.out) if args.out else default_out_dir(loaded)
+    out = out_dir_of(loaded, args.out)
     prepare_out_dir(out, args.force)
     announce(out)  # a supervised run: where its parent finishes it if an FMU ends the process
     progress = _Progress(loaded, args)

@@ -126,9 +126,8 @@ def dead_run_record(task: Task, death: Death) -> dict:
     """The record of a run whose process ended in it (:func:`supervised_pool`): failed, with the
     one line ``uwcosim run`` would print; its run directory finished and kept."""
     error = finish_death(death.out_dir, death.message(), death.error is not None)
-    if death.out_dir is not None:
-        if not task.log_dir:  # a temporary run directory: kept under failed/
-            error = _kept_failed(error, death.out_dir, task)
+    if death.out_dir is not None and not task.log_dir:  # a temporary one: kept under failed/
+        error = _kept_failed(error, death.out_dir, task)
     return {"variant": task.variant, "run": task.run, "seed": task.seed, "status": "failed",
             "error": error, "estimators": {}}
 

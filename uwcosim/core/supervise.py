@@ -59,7 +59,7 @@ T = TypeVar("T")
 
 _FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 _fd: int | None = None  # the child's end of the pipe
-_parent_reports = False  # a child of supervised_map or supervised_pool (see parent_reports)
+_parent_reports = False  # a child whose parent reports its last error (see parent_reports)
 
 
 @dataclass
@@ -202,9 +202,10 @@ class Child:
     it says (:func:`tell`) as it arrives (or :meth:`read`, one read of the pipe, for a parent
     that waits on several children: :meth:`fileno`); then :attr:`result` is its exit status or
     its :class:`Death`. :meth:`close` ends it (if it still runs) and removes its temporary
-    folder."""
+    folder. ``reports``: the parent reports the one-line error the child ends with
+    (:func:`parent_reports` in the child)."""
 
-    def __init__(self, command: Callable[[], int]) -> None:
+    def __init__(self, command: Callable[[], int], reports: bool = False) -> None:
         self.result: int | Death | None = None
         self.out_dir: str | None = None
         self.error: str | None = None
@@ -223,15 +224,17 @@ class Child:
         self._before = len(_forwarder.signals)
         pid = os.fork()
         if pid == 0:  # the child: the command, then its exit status to the parent
-            self._child(command, w, parent, _forwarder.signals[self._before:])
+            self._child(command, w, parent, _forwarder.signals[self._before:], reports)
         os.close(w)
         self._pid = pid
         _forwarder.pids.add(pid)
         for s in _forwarder.signals[self._before:]:  # arrived during the fork
             os.kill(pid, s)
 
-    def _child(self, command: Callable[[], int], w: int, parent: int, early: list[int]):
-        global _fd
+    def _child(self, command: Callable[[], int], w: int, parent: int, early: list[int],
+               reports: bool):
+        global _fd, _parent_reports
+        _parent_reports = reports
         _forwarder.restore()
         _forwarder.pids.clear()
         for s in early:  # reached the child before its own handlers were back
@@ -349,7 +352,7 @@ def supervised_map(func: Callable[[T], object], items: Sequence[T]
         return
     start = 0
     while start < len(items):
-        child = Child(partial(_map_child, func, items, start))
+        child = Child(partial(_map_child, func, items, start), reports=True)
         current = None
         try:
             for key, value in child.messages():
@@ -406,8 +409,6 @@ def _stop_status(exc: BaseException) -> int:
 
 
 def _map_child(func: Callable, items: Sequence, start: int) -> int:
-    global _parent_reports
-    _parent_reports = True
     for i in range(start, len(items)):
         tell("item", str(i))
         try:
@@ -457,7 +458,6 @@ def supervised_pool(func: Callable[[T], object], items: Sequence[T], workers: in
         """The lane's next item, or ``stop`` (a child that died meanwhile: its end is read)."""
         lane.item = queue.popleft() if queue and not stopping() else None
         lane.started = False
-        lane.child.out_dir = lane.child.error = None
         try:
             os.write(lane.tasks, b"stop\n" if lane.item is None else b"%d\n" % lane.item)
         except OSError:
@@ -465,7 +465,7 @@ def supervised_pool(func: Callable[[T], object], items: Sequence[T], workers: in
 
     def start() -> None:
         r, w = os.pipe()
-        child = Child(partial(_lane_child, func, items, r, w))
+        child = Child(partial(_lane_child, func, items, r, w), reports=True)
         os.close(r)
         lane = _Lane(child, w)
         lanes[child.fileno()] = lane
@@ -524,8 +524,6 @@ def supervised_pool(func: Callable[[T], object], items: Sequence[T], workers: in
 def _lane_child(func: Callable, items: Sequence, tasks: int, parents_end: int) -> int:
     """A child of :func:`supervised_pool`: the items whose indices the parent writes to the
     pipe ``tasks``, one per line, until ``stop``."""
-    global _parent_reports
-    _parent_reports = True
     os.close(parents_end)
     with os.fdopen(tasks, "rb") as pipe:
         try:  # interrupted in an item or waiting for one

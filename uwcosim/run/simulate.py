@@ -214,10 +214,10 @@ def as_loaded(scenario: LoadedScenario | str | Path) -> LoadedScenario:
     return load_scenario(scenario)
 
 
-def default_out_dir(loaded: LoadedScenario) -> Path:
-    """The run directory of a run not given one: ``runs/<scenario file stem>``, as
-    ``uwcosim run``."""
-    return Path("runs") / loaded.path.stem
+def out_dir_of(loaded: LoadedScenario, out_dir: str | Path | None = None) -> Path:
+    """The run directory of a run of ``loaded``: ``out_dir``, or if it is not given
+    ``runs/<scenario file stem>``, as ``uwcosim run``."""
+    return Path(out_dir) if out_dir else Path("runs") / loaded.path.stem
 
 
 def _density_steps(master: Master, times: list[float]) -> set[int]:
@@ -273,7 +273,7 @@ def simulate(scenario: LoadedScenario | str | Path, out_dir: str | Path | None =
     ``progress`` and ``master`` are then used in the child.
     """
     loaded = as_loaded(scenario)
-    out_dir = Path(out_dir) if out_dir is not None else default_out_dir(loaded)
+    out_dir = out_dir_of(loaded, out_dir)
     if contained:
         run_contained(functools.partial(simulate, loaded, out_dir, seed=seed, progress=progress,
                                         master=master, evaluate=evaluate), out_dir)
@@ -553,7 +553,7 @@ def run_scenario(scenario: LoadedScenario | str | Path, out_dir: str | Path | No
     """
     loaded = as_loaded(scenario)
     if contained:
-        out_dir = Path(out_dir) if out_dir is not None else default_out_dir(loaded)
+        out_dir = out_dir_of(loaded, out_dir)
         run_contained(functools.partial(run_scenario, loaded, out_dir, seed=seed,
                                         figures=figures, progress=progress, master=master,
                                         report=report), out_dir)
